@@ -1,0 +1,246 @@
+"""The `sp` command: plan on and check station models (DESIGN.md section 8, a fixed contract).
+
+Exit codes: 0 plan found (or model valid), 1 unreachable or bad start, 2 invalid model or
+arguments, with a message on stderr naming file, line and column.  `millis` is the time from
+the command's start to its answer, Python's own start-up excluded.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from collections import Counter
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any, NoReturn
+
+from planner.expressions import Expr, ExpressionError, parse_expr
+from planner.loading import Diagnostic, ModelError, closest, load_model, scope_for
+from planner.model import Model, SourceLocation, TransitionKind, VariableKind
+from planner.planning import PlanQuery, PlanResult, PlanStatus, State
+
+
+class UsageError(Exception):
+    """Bad arguments or inputs other than the model: exit 2 with this message."""
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    started = time.perf_counter()
+    parser = _parser()
+    args = parser.parse_args(argv)
+    try:
+        if args.command == "plan":
+            return _plan(args, started)
+        return _check(args)
+    except ModelError as exc:
+        for diagnostic in exc.diagnostics:
+            print(f"error: {diagnostic}", file=sys.stderr)
+        return 2
+    except UsageError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="sp", description="Sequence Planner")
+    commands = parser.add_subparsers(dest="command", required=True)
+    plan = commands.add_parser("plan", help="find a minimal safe plan to a goal")
+    plan.add_argument("model", help="model file (YAML)")
+    plan.add_argument("--goal", required=True, help="goal expression, e.g. 'r1.pos == bp1'")
+    plan.add_argument("--state", help="start state: JSON object name -> value (all variables)")
+    plan.add_argument("--max-steps", type=_non_negative, default=100, metavar="N")
+    plan.add_argument("--maintenance", action="store_true", help="allow maintenance transitions")
+    plan.add_argument("--json", action="store_true", help="print one JSON object")
+    plan.add_argument(
+        "--engine",
+        choices=("bdd", "sat"),
+        default="bdd",
+        help="bdd: symbolic breadth-first search (default); sat: incremental SAT BMC",
+    )
+    check = commands.add_parser("check", help="validate a model and print its size")
+    check.add_argument("model", help="model file (YAML)")
+    check.add_argument("--json", action="store_true", help="print one JSON object")
+    return parser
+
+
+def _non_negative(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a whole number") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError("must be 0 or more")
+    return value
+
+
+def _read_model(path: str) -> Model:
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise UsageError(f"{path}: cannot read the model: {exc}") from None
+    return load_model(text, path)
+
+
+def _goal(model: Model, text: str) -> Expr:
+    try:
+        return parse_expr(text, scope_for(model.domains))
+    except ExpressionError as exc:
+        raise ModelError(
+            [Diagnostic(SourceLocation("--goal", 1, exc.offset + 1), exc.message)]
+        ) from None
+
+
+def _plan(args: argparse.Namespace, started: float) -> int:
+    from planner.transition_planner import TransitionPlanner
+
+    model = _read_model(args.model)
+    goal = _goal(model, args.goal)
+    start = _read_state(model, args.state) if args.state else tuple(model.initial_values().values())
+    planner = TransitionPlanner(model, engine=args.engine)
+    query = PlanQuery(start, goal, max_steps=args.max_steps, maintenance=args.maintenance)
+    result = planner.plan(query)
+    millis = round((time.perf_counter() - started) * 1000, 3)
+    if args.json:
+        print(json.dumps(_plan_json(result, millis)))
+    else:
+        _print_plan(result, millis)
+    return 0 if result.status is PlanStatus.FOUND else 1
+
+
+def _plan_json(result: PlanResult, millis: float) -> dict[str, Any]:
+    if result.status is PlanStatus.FOUND:
+        return {
+            "status": "found",
+            "length": result.length,
+            "plan": list(result.plan),
+            "millis": millis,
+        }
+    if result.status is PlanStatus.UNREACHABLE:
+        return {"status": "unreachable", "max_steps": result.max_steps, "millis": millis}
+    return {"status": "bad_start", "violated": list(result.violated)}
+
+
+def _print_plan(result: PlanResult, millis: float) -> None:
+    if result.status is PlanStatus.FOUND:
+        steps = "step" if result.length == 1 else "steps"
+        print(f"found a plan of {result.length} {steps} ({millis} ms, engine {result.engine})")
+        for i, name in enumerate(result.plan, 1):
+            print(f"{i:4}. {name}")
+    elif result.status is PlanStatus.UNREACHABLE:
+        print(f"unreachable: no plan of at most {result.max_steps} steps ({millis} ms)")
+    else:
+        print("bad start: the start state is bad for " + ", ".join(result.violated))
+
+
+def _read_state(model: Model, path: str) -> State:
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise UsageError(f"{path}: cannot read the state: {exc}") from None
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        _state_error(path, exc.lineno, exc.colno, f"invalid JSON: {exc.msg}")
+    if not isinstance(data, dict):
+        _state_error(path, 1, 1, "the state must be a JSON object: variable name -> value")
+    values: list[Any] = []
+    unknown = [name for name in data if name not in model.variable_index]
+    for name in unknown:
+        hint = closest(name, model.variable_index)
+        extra = f" (did you mean '{hint}'?)" if hint else ""
+        line, column = _position_of(text, json.dumps(name))
+        _state_error(path, line, column, f"unknown variable '{name}'{extra}")
+    missing = [v.name for v in model.variables if v.name not in data]
+    if missing:
+        shown = ", ".join(missing[:8]) + (" ..." if len(missing) > 8 else "")
+        _state_error(path, 1, 1, f"the state must give every variable; missing: {shown}")
+    for variable in model.variables:
+        raw = data[variable.name]
+        value: Any = (
+            raw if isinstance(raw, bool) else str(raw) if isinstance(raw, str | int) else None
+        )
+        if variable.is_bool and isinstance(raw, str) and raw in ("true", "false"):
+            value = raw == "true"
+        if (
+            value is None
+            or value not in variable.domain
+            or (isinstance(value, bool) != variable.is_bool)
+        ):
+            line, column = _position_of(text, json.dumps(variable.name))
+            _state_error(
+                path,
+                line,
+                column,
+                f"value {json.dumps(raw)} of '{variable.name}' is outside its domain "
+                f"{variable.describe_domain()}",
+            )
+        values.append(value)
+    return tuple(values)
+
+
+def _position_of(text: str, needle: str) -> tuple[int, int]:
+    index = text.find(needle)
+    if index < 0:
+        return 1, 1
+    before = text[:index]
+    return before.count("\n") + 1, index - (before.rfind("\n") + 1) + 1
+
+
+def _state_error(path: str, line: int, column: int, message: str) -> NoReturn:
+    raise ModelError([Diagnostic(SourceLocation(path, line, column), message)])
+
+
+def _check(args: argparse.Namespace) -> int:
+    from planner.transition_planner import TransitionPlanner
+
+    model = _read_model(args.model)
+    planner = TransitionPlanner(model)
+    report = _size_report(model, planner)
+    if args.json:
+        print(json.dumps(report))
+        return 0
+    print(f"{args.model}: valid")
+    kinds = ", ".join(f"{n} {k}" for k, n in report["variables_by_kind"].items() if n)
+    print(f"variables: {report['variables']} ({kinds})")
+    print(f"flattened boolean variables: {report['boolean_variables']}")
+    by_kind = ", ".join(f"{n} {k}" for k, n in report["transitions_by_kind"].items())
+    print(f"transitions: {report['transitions']} ({by_kind})")
+    print(f"specifications: {report['specifications']}")
+    print(f"states: {report['states']}, bad: {report['bad_states']}")
+    guards = report["supervisor_guards"]
+    print(f"supervisor guards added: {len(guards)}")
+    for guard in guards:
+        print(f"  {guard['transition']}: {guard['guard']}")
+        print(f"      (forbids it in {guard['forbidden_states']} states)")
+    return 0
+
+
+def _size_report(model: Model, planner: Any) -> dict[str, Any]:
+    sym = planner.sym
+    variable_kinds = Counter(v.kind for v in model.variables)
+    transition_kinds = Counter(t.kind for t in model.transitions)
+    return {
+        "valid": True,
+        "variables": len(model.variables),
+        "variables_by_kind": {k.value: variable_kinds[k] for k in VariableKind},
+        "boolean_variables": len(sym.state_bits),
+        "transitions": len(model.transitions),
+        "transitions_by_kind": {k.value: transition_kinds[k] for k in TransitionKind},
+        "specifications": len(model.specifications),
+        "states": sym.count(sym.true),
+        "bad_states": sym.count(planner.bad),
+        "supervisor_guards": [
+            {
+                "transition": g.transition,
+                "guard": g.describe(),
+                "forbidden_states": g.forbidden_states,
+            }
+            for g in planner.guards
+        ],
+    }
+
+
+if __name__ == "__main__":
+    sys.exit(main())

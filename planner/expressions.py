@@ -1,0 +1,510 @@
+"""Predicates and actions over finite-domain variables (DESIGN.md section 8).
+
+Parsing happens in two stages so that every error can be located: the text is first parsed
+into a syntax tree that remembers character offsets, then names are resolved against the
+model's variables (and, for rich models, named predicates), which yields the typed `Expr`
+used everywhere else.  `!` binds tightest, then `&&`, `||`, `->` (right-associative).
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+
+Value = bool | str
+"""A value of a variable's domain: `False`/`True` for booleans, a name for enumerations."""
+
+
+class ExpressionError(Exception):
+    """A problem in expression or action text, at a character offset of that text."""
+
+    def __init__(self, message: str, offset: int) -> None:
+        super().__init__(message)
+        self.message = message
+        self.offset = offset
+
+
+# ---- typed expressions ----------------------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class Const:
+    value: bool
+
+
+@dataclass(frozen=True, slots=True)
+class BoolVar:
+    """A boolean variable used as a predicate."""
+
+    name: str
+
+
+@dataclass(frozen=True, slots=True)
+class Equals:
+    """`name == value`; `!=` is `Not(Equals(...))`."""
+
+    name: str
+    value: Value
+
+
+@dataclass(frozen=True, slots=True)
+class SameValue:
+    """`left == right` for two variables of the same domain."""
+
+    left: str
+    right: str
+
+
+@dataclass(frozen=True, slots=True)
+class Not:
+    arg: Expr
+
+
+@dataclass(frozen=True, slots=True)
+class And:
+    args: tuple[Expr, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class Or:
+    args: tuple[Expr, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class Implies:
+    left: Expr
+    right: Expr
+
+
+Expr = Const | BoolVar | Equals | SameValue | Not | And | Or | Implies
+
+TRUE = Const(True)
+FALSE = Const(False)
+
+
+def conjunction(args: list[Expr] | tuple[Expr, ...]) -> Expr:
+    """`a && b && ...`, flattening nested conjunctions and dropping `true`."""
+    flat: list[Expr] = []
+    for arg in args:
+        if isinstance(arg, And):
+            flat.extend(arg.args)
+        elif arg == TRUE:
+            continue
+        elif arg == FALSE:
+            return FALSE
+        else:
+            flat.append(arg)
+    if not flat:
+        return TRUE
+    return flat[0] if len(flat) == 1 else And(tuple(flat))
+
+
+def disjunction(args: list[Expr] | tuple[Expr, ...]) -> Expr:
+    """`a || b || ...`, flattening nested disjunctions and dropping `false`."""
+    flat: list[Expr] = []
+    for arg in args:
+        if isinstance(arg, Or):
+            flat.extend(arg.args)
+        elif arg == FALSE:
+            continue
+        elif arg == TRUE:
+            return TRUE
+        else:
+            flat.append(arg)
+    if not flat:
+        return FALSE
+    return flat[0] if len(flat) == 1 else Or(tuple(flat))
+
+
+def negation(arg: Expr) -> Expr:
+    if isinstance(arg, Not):
+        return arg.arg
+    if isinstance(arg, Const):
+        return Const(not arg.value)
+    return Not(arg)
+
+
+def variables_of(expr: Expr) -> frozenset[str]:
+    """The variables an expression reads."""
+    match expr:
+        case Const():
+            return frozenset()
+        case BoolVar(name) | Equals(name, _):
+            return frozenset((name,))
+        case SameValue(left, right):
+            return frozenset((left, right))
+        case Not(arg):
+            return variables_of(arg)
+        case And(args) | Or(args):
+            return frozenset().union(*(variables_of(a) for a in args))
+        case Implies(left, right):
+            return variables_of(left) | variables_of(right)
+    raise TypeError(expr)
+
+
+def format_value(value: Value) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return value
+
+
+_PRECEDENCE = {Implies: 1, Or: 2, And: 3}
+
+
+def format_expr(expr: Expr) -> str:
+    """Text in the section 8 syntax that parses back to the same expression."""
+    return _format(expr, 0)
+
+
+def _format(expr: Expr, parent: int) -> str:
+    match expr:
+        case Const(value):
+            return format_value(value)
+        case BoolVar(name):
+            return name
+        case Equals(name, value):
+            return f"{name} == {format_value(value)}"
+        case SameValue(left, right):
+            return f"{left} == {right}"
+        case Not(Equals(name, value)):
+            return f"{name} != {format_value(value)}"
+        case Not(SameValue(left, right)):
+            return f"{left} != {right}"
+        case Not(arg):
+            return "!" + _format(arg, 4)
+        case And(args) | Or(args):
+            level = _PRECEDENCE[type(expr)]
+            text = (" && " if isinstance(expr, And) else " || ").join(
+                _format(a, level + 1) for a in args
+            )
+            return f"({text})" if parent > level else text
+        case Implies(left, right):
+            text = f"{_format(left, 2)} -> {_format(right, 1)}"
+            return f"({text})" if parent > 1 else text
+    raise TypeError(expr)
+
+
+# ---- actions --------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class Assign:
+    """`target := value` or, when `source` is set, `target := source` (another variable)."""
+
+    target: str
+    value: Value | None = None
+    source: str | None = None
+
+    def __str__(self) -> str:
+        if self.source is not None:
+            return f"{self.target} := {self.source}"
+        assert self.value is not None
+        return f"{self.target} := {format_value(self.value)}"
+
+
+# ---- syntax ---------------------------------------------------------------------------------
+
+_TOKEN = re.compile(
+    r"\s*(?:(?P<op>==|!=|&&|\|\||->|:=|!|\(|\))"
+    r"|(?P<name>[A-Za-z_][A-Za-z0-9_]*(?:\.[A-Za-z_][A-Za-z0-9_]*)*)"
+    r"|(?P<number>-?[0-9]+))"
+)
+_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(?:\.[A-Za-z_][A-Za-z0-9_]*)*\Z")
+
+
+def is_name(text: str) -> bool:
+    """A dotted identifier, as section 8 requires of every name."""
+    return _NAME.match(text) is not None
+
+
+@dataclass(frozen=True, slots=True)
+class _Token:
+    kind: str  # "op", "name", "number", "end"
+    text: str
+    offset: int
+
+
+def _tokenize(text: str) -> list[_Token]:
+    tokens: list[_Token] = []
+    pos = 0
+    while pos < len(text):
+        if text[pos:].strip() == "":
+            break
+        match = _TOKEN.match(text, pos)
+        if match is None or match.end() == pos:
+            start = pos + len(text[pos:]) - len(text[pos:].lstrip())
+            raise ExpressionError(f"unexpected character {text[start]!r}", start)
+        kind = match.lastgroup
+        assert kind is not None
+        tokens.append(_Token(kind, match.group(kind), match.start(kind)))
+        pos = match.end()
+    tokens.append(_Token("end", "", len(text.rstrip())))
+    return tokens
+
+
+@dataclass(frozen=True, slots=True)
+class Word:
+    """A name, number or literal in the syntax tree, with its offset."""
+
+    text: str
+    offset: int
+
+
+@dataclass(frozen=True, slots=True)
+class SyntaxNode:
+    """Untyped syntax: op is one of `word`, `cmp`, `!`, `&&`, `||`, `->`."""
+
+    op: str
+    offset: int
+    args: tuple[SyntaxNode, ...] = ()
+    word: Word | None = None
+    compare: str = ""  # "==" or "!=" for op "cmp"
+    right: Word | None = None
+
+
+class _Parser:
+    def __init__(self, text: str) -> None:
+        self.tokens = _tokenize(text)
+        self.index = 0
+
+    @property
+    def current(self) -> _Token:
+        return self.tokens[self.index]
+
+    def take(self) -> _Token:
+        token = self.tokens[self.index]
+        self.index += 1
+        return token
+
+    def expect_end(self) -> None:
+        token = self.current
+        if token.kind != "end":
+            raise ExpressionError(f"unexpected {token.text!r}", token.offset)
+
+    def implication(self) -> SyntaxNode:
+        left = self.disjunction()
+        if self.current.text == "->":
+            offset = self.take().offset
+            right = self.implication()
+            return SyntaxNode("->", offset, (left, right))
+        return left
+
+    def disjunction(self) -> SyntaxNode:
+        args = [self.conjunction()]
+        while self.current.text == "||":
+            self.take()
+            args.append(self.conjunction())
+        return args[0] if len(args) == 1 else SyntaxNode("||", args[0].offset, tuple(args))
+
+    def conjunction(self) -> SyntaxNode:
+        args = [self.unary()]
+        while self.current.text == "&&":
+            self.take()
+            args.append(self.unary())
+        return args[0] if len(args) == 1 else SyntaxNode("&&", args[0].offset, tuple(args))
+
+    def unary(self) -> SyntaxNode:
+        token = self.current
+        if token.text == "!":
+            self.take()
+            return SyntaxNode("!", token.offset, (self.unary(),))
+        if token.text == "(":
+            self.take()
+            inner = self.implication()
+            if self.current.text != ")":
+                raise ExpressionError(
+                    f"expected ')' to close the '(' at offset {token.offset}"
+                    + (f", found {self.current.text!r}" if self.current.kind != "end" else ""),
+                    self.current.offset,
+                )
+            self.take()
+            return inner
+        if token.kind in ("name", "number"):
+            self.take()
+            word = Word(token.text, token.offset)
+            if self.current.text in ("==", "!="):
+                compare = self.take().text
+                right = self.current
+                if right.kind not in ("name", "number"):
+                    raise ExpressionError(
+                        f"expected a value or variable after {compare!r}", right.offset
+                    )
+                self.take()
+                return SyntaxNode(
+                    "cmp",
+                    token.offset,
+                    word=word,
+                    compare=compare,
+                    right=Word(right.text, right.offset),
+                )
+            return SyntaxNode("word", token.offset, word=word)
+        if token.kind == "end":
+            raise ExpressionError("expression ends too early", token.offset)
+        raise ExpressionError(f"unexpected {token.text!r}", token.offset)
+
+
+def parse_syntax(text: str) -> SyntaxNode:
+    """Parse expression text into an untyped tree; raises `ExpressionError` on bad syntax."""
+    parser = _Parser(text)
+    node = parser.implication()
+    parser.expect_end()
+    return node
+
+
+@dataclass(frozen=True, slots=True)
+class AssignSyntax:
+    target: Word
+    value: Word
+
+
+def parse_assign_syntax(text: str) -> AssignSyntax:
+    """Parse `x := v`; raises `ExpressionError` on bad syntax."""
+    tokens = _tokenize(text)
+    if len(tokens) < 2 or tokens[0].kind != "name":
+        raise ExpressionError("an action must look like 'variable := value'", tokens[0].offset)
+    if tokens[1].text != ":=":
+        raise ExpressionError(f"expected ':=' after {tokens[0].text!r}", tokens[1].offset)
+    if len(tokens) < 3 or tokens[2].kind not in ("name", "number"):
+        raise ExpressionError("expected a value or variable after ':='", tokens[2].offset)
+    if tokens[3].kind != "end":
+        raise ExpressionError(f"unexpected {tokens[3].text!r} after the action", tokens[3].offset)
+    return AssignSyntax(
+        Word(tokens[0].text, tokens[0].offset), Word(tokens[2].text, tokens[2].offset)
+    )
+
+
+# ---- name resolution ------------------------------------------------------------------------
+
+
+class Scope:
+    """What names mean while resolving: variable domains and named predicates.
+
+    `domains` maps each variable to its domain (a tuple of values, `(False, True)` for bool).
+    `predicates` maps extra names (an ability's `enabled`, an operation's `goal`, ...) to
+    already resolved expressions.  `suggest` proposes the closest known name in messages.
+    """
+
+    def __init__(
+        self,
+        domains: Mapping[str, tuple[Value, ...]],
+        predicates: Mapping[str, Expr] | None = None,
+        suggest: Callable[[str], str | None] | None = None,
+    ) -> None:
+        self.domains = domains
+        self.predicates = predicates or {}
+        self.suggest = suggest or (lambda name: None)
+
+    def is_bool(self, name: str) -> bool:
+        return self.domains[name] == (False, True)
+
+    def unknown(self, word: Word, what: str = "variable") -> ExpressionError:
+        hint = self.suggest(word.text)
+        extra = f" (did you mean '{hint}'?)" if hint else ""
+        return ExpressionError(f"unknown {what} '{word.text}'{extra}", word.offset)
+
+    def value_of(self, variable: str, word: Word) -> Value:
+        """The domain value `word` names for `variable`, or an error naming the domain."""
+        domain = self.domains[variable]
+        if domain == (False, True):
+            if word.text in ("true", "false"):
+                return word.text == "true"
+            raise ExpressionError(
+                f"'{word.text}' is not a value of boolean variable '{variable}' "
+                "(use true or false)",
+                word.offset,
+            )
+        if word.text in domain:
+            return word.text
+        shown = ", ".join(str(v) for v in domain)
+        raise ExpressionError(
+            f"'{word.text}' is not a value of '{variable}' (domain: {shown})", word.offset
+        )
+
+
+def resolve(node: SyntaxNode, scope: Scope) -> Expr:
+    """Turn a syntax tree into a typed expression, checking names, values and types."""
+    match node.op:
+        case "!":
+            return negation(resolve(node.args[0], scope))
+        case "&&":
+            return conjunction([resolve(a, scope) for a in node.args])
+        case "||":
+            return disjunction([resolve(a, scope) for a in node.args])
+        case "->":
+            return Implies(resolve(node.args[0], scope), resolve(node.args[1], scope))
+        case "word":
+            assert node.word is not None
+            return _resolve_word(node.word, scope)
+        case "cmp":
+            assert node.word is not None and node.right is not None
+            result = _resolve_comparison(node.word, node.right, scope)
+            return negation(result) if node.compare == "!=" else result
+    raise AssertionError(node.op)
+
+
+def _resolve_word(word: Word, scope: Scope) -> Expr:
+    if word.text in ("true", "false"):
+        return Const(word.text == "true")
+    if word.text in scope.domains:
+        if not scope.is_bool(word.text):
+            raise ExpressionError(
+                f"'{word.text}' is not boolean; compare it with a value, "
+                f"e.g. '{word.text} == {scope.domains[word.text][0]}'",
+                word.offset,
+            )
+        return BoolVar(word.text)
+    if word.text in scope.predicates:
+        return scope.predicates[word.text]
+    raise scope.unknown(word)
+
+
+def _resolve_comparison(left: Word, right: Word, scope: Scope) -> Expr:
+    if left.text not in scope.domains:
+        if left.text in scope.predicates or left.text in ("true", "false"):
+            raise ExpressionError(
+                f"'{left.text}' is a predicate; only variables can be compared", left.offset
+            )
+        raise scope.unknown(left)
+    if right.text in scope.domains:
+        if scope.domains[right.text] != scope.domains[left.text]:
+            raise ExpressionError(
+                f"cannot compare '{left.text}' with '{right.text}': their domains differ",
+                right.offset,
+            )
+        return SameValue(left.text, right.text)
+    value = scope.value_of(left.text, right)
+    if isinstance(value, bool):
+        return BoolVar(left.text) if value else Not(BoolVar(left.text))
+    return Equals(left.text, value)
+
+
+def parse_expr(text: str, scope: Scope) -> Expr:
+    """Parse and resolve expression text in one go."""
+    return resolve(parse_syntax(text), scope)
+
+
+def resolve_assign(syntax: AssignSyntax, scope: Scope) -> Assign:
+    target, value = syntax.target, syntax.value
+    if target.text not in scope.domains:
+        raise scope.unknown(target)
+    if value.text in scope.domains:
+        if scope.domains[value.text] != scope.domains[target.text]:
+            raise ExpressionError(
+                f"cannot assign '{value.text}' to '{target.text}': their domains differ",
+                value.offset,
+            )
+        return Assign(target.text, source=value.text)
+    return Assign(target.text, value=scope.value_of(target.text, value))
+
+
+def parse_assign(text: str, scope: Scope) -> Assign:
+    return resolve_assign(parse_assign_syntax(text), scope)
+
+
+def substitute_names(text: str, mapping: Mapping[str, str]) -> str:
+    """Replace `{param}` placeholders, used when an ability is instantiated per parameter."""
+    result = text
+    for key, value in mapping.items():
+        result = result.replace("{" + key + "}", value)
+    return result

@@ -1,0 +1,500 @@
+"""Reading models from YAML text with errors that name file, line, column and the problem.
+
+The YAML is composed into nodes (not constructed into plain dicts) so that every scalar keeps
+its position; expression errors are mapped from their offset inside the scalar back to the
+line and column in the file.  All problems found are collected before raising, so an
+engineer sees every mistake at once.  Pure: text in, `Model` out.
+"""
+
+from __future__ import annotations
+
+import difflib
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass
+from typing import TypeVar
+
+import yaml
+
+from planner.expressions import (
+    Assign,
+    Expr,
+    ExpressionError,
+    Scope,
+    Value,
+    is_name,
+    parse_assign_syntax,
+    parse_syntax,
+    resolve,
+    resolve_assign,
+)
+from planner.model import (
+    BOOL,
+    Model,
+    SourceLocation,
+    Specification,
+    Transition,
+    TransitionKind,
+    Variable,
+    VariableKind,
+)
+
+try:  # the C loader composes several times faster; fall back where libyaml is missing
+    _Loader: type = yaml.CSafeLoader
+except AttributeError:  # pragma: no cover
+    _Loader = yaml.SafeLoader
+
+T = TypeVar("T")
+
+
+@dataclass(frozen=True, slots=True)
+class Diagnostic:
+    location: SourceLocation
+    message: str
+
+    def __str__(self) -> str:
+        return f"{self.location}: {self.message}"
+
+
+class ModelError(Exception):
+    """A model that cannot be used; `diagnostics` lists every problem found, in file order."""
+
+    def __init__(self, diagnostics: list[Diagnostic]) -> None:
+        self.diagnostics = sorted(diagnostics, key=lambda d: (d.location.line, d.location.column))
+        super().__init__("\n".join(str(d) for d in self.diagnostics))
+
+
+def closest(name: str, candidates: Iterable[str]) -> str | None:
+    """The known name most like `name`, for 'did you mean' hints."""
+    matches = difflib.get_close_matches(name, list(candidates), n=1, cutoff=0.6)
+    return matches[0] if matches else None
+
+
+class Reader:
+    """Walks composed YAML nodes, recording located diagnostics instead of failing early."""
+
+    def __init__(self, text: str, file: str) -> None:
+        self.text = text
+        self.file = file
+        self.diagnostics: list[Diagnostic] = []
+
+    # -- locations -----------------------------------------------------------------------------
+
+    def at(self, node: yaml.Node) -> SourceLocation:
+        mark = node.start_mark
+        return SourceLocation(self.file, mark.line + 1, mark.column + 1)
+
+    def at_offset(self, node: yaml.Node, offset: int) -> SourceLocation:
+        """The file position of character `offset` of a scalar's value."""
+        start, end = node.start_mark, node.end_mark
+        style = getattr(node, "style", None)
+        value = str(node.value)
+        if start.line == end.line and style in (None, "'", '"'):
+            quote = 0 if style is None else 1
+            return SourceLocation(self.file, start.line + 1, start.column + 1 + quote + offset)
+        if style == "|":
+            lines = value.split("\n")
+            line_no, col = 0, offset
+            while line_no < len(lines) - 1 and col > len(lines[line_no]):
+                col -= len(lines[line_no]) + 1
+                line_no += 1
+            source_lines = self.text.splitlines()
+            first = start.line + 1 + line_no
+            if first < len(source_lines):
+                indent = len(source_lines[first]) - len(source_lines[first].lstrip())
+                return SourceLocation(self.file, first + 1, indent + col + 1)
+        # folded or multi-line flow scalars: find the text near the offset in the source
+        snippet = value[offset : offset + 12].split("\n")[0].strip()
+        region = self.text[start.index : end.index]
+        found = region.find(snippet) if snippet else -1
+        if found >= 0:
+            before = self.text[: start.index + found]
+            line = before.count("\n") + 1
+            column = len(before) - (before.rfind("\n") + 1) + 1
+            return SourceLocation(self.file, line, column)
+        return self.at(node)
+
+    def error(self, node: yaml.Node, message: str) -> None:
+        self.diagnostics.append(Diagnostic(self.at(node), message))
+
+    def error_at(self, location: SourceLocation, message: str) -> None:
+        self.diagnostics.append(Diagnostic(location, message))
+
+    def raise_if_errors(self) -> None:
+        if self.diagnostics:
+            raise ModelError(self.diagnostics)
+
+    # -- structure -----------------------------------------------------------------------------
+
+    def compose(self) -> yaml.Node | None:
+        try:
+            return yaml.compose(self.text, Loader=_Loader)  # type: ignore[no-any-return]
+        except yaml.MarkedYAMLError as exc:
+            mark = exc.problem_mark or exc.context_mark
+            line, column = (mark.line + 1, mark.column + 1) if mark else (1, 1)
+            problem = exc.problem or "invalid YAML"
+            context = f" ({exc.context})" if exc.context else ""
+            raise ModelError(
+                [Diagnostic(SourceLocation(self.file, line, column), f"YAML: {problem}{context}")]
+            ) from None
+        except yaml.YAMLError as exc:
+            raise ModelError(
+                [Diagnostic(SourceLocation(self.file, 1, 1), f"YAML: {exc}")]
+            ) from None
+
+    def mapping(
+        self, node: yaml.Node, what: str, allowed: Iterable[str], required: Iterable[str] = ()
+    ) -> dict[str, tuple[yaml.Node, yaml.Node]] | None:
+        """Keys of a mapping node → (key node, value node); unknown or missing keys are errors."""
+        if not isinstance(node, yaml.MappingNode):
+            self.error(node, f"{what} must be a mapping (key: value)")
+            return None
+        allowed = list(allowed)
+        result: dict[str, tuple[yaml.Node, yaml.Node]] = {}
+        for key_node, value_node in node.value:
+            key = str(key_node.value)
+            if key in result:
+                self.error(key_node, f"duplicate key '{key}' in {what}")
+                continue
+            if key not in allowed:
+                hint = closest(key, allowed)
+                extra = f" (did you mean '{hint}'?)" if hint else ""
+                self.error(
+                    key_node,
+                    f"unknown key '{key}' in {what}{extra}; allowed: {', '.join(allowed)}",
+                )
+                continue
+            result[key] = (key_node, value_node)
+        for key in required:
+            if key not in result:
+                self.error(node, f"{what} needs '{key}'")
+        return result
+
+    def sequence(self, node: yaml.Node, what: str) -> list[yaml.Node]:
+        if isinstance(node, yaml.ScalarNode) and node.tag.endswith(":null"):
+            return []
+        if not isinstance(node, yaml.SequenceNode):
+            self.error(node, f"{what} must be a list")
+            return []
+        return list(node.value)
+
+    def scalar(self, node: yaml.Node, what: str) -> str | None:
+        if not isinstance(node, yaml.ScalarNode):
+            self.error(node, f"{what} must be a single value, not a list or mapping")
+            return None
+        return str(node.value)
+
+    def name(self, node: yaml.Node, what: str) -> str | None:
+        text = self.scalar(node, what)
+        if text is None:
+            return None
+        if not is_name(text):
+            self.error(
+                node,
+                f"{what} '{text}' is not a name: use letters, digits and '_' in parts joined "
+                "by '.', not starting with a digit",
+            )
+            return None
+        if text in ("true", "false"):
+            self.error(node, f"{what} cannot be '{text}': it is a boolean literal")
+            return None
+        return text
+
+    def unique(
+        self,
+        items: list[tuple[str, yaml.Node]],
+        what: str,
+    ) -> None:
+        seen: dict[str, yaml.Node] = {}
+        for name, node in items:
+            if name in seen:
+                first = self.at(seen[name])
+                self.error(
+                    node, f"duplicate {what} name '{name}' (first defined at line {first.line})"
+                )
+            else:
+                seen[name] = node
+
+    # -- expressions ---------------------------------------------------------------------------
+
+    def expression(self, node: yaml.Node, scope: Scope, what: str) -> Expr | None:
+        text = self.scalar(node, what)
+        if text is None:
+            return None
+        if isinstance(node, yaml.ScalarNode) and node.tag.endswith(":bool"):
+            text = text.lower()  # YAML's True/yes spelled as a guard
+        try:
+            return resolve(parse_syntax(text), scope)
+        except ExpressionError as exc:
+            self.error_at(self.at_offset(node, exc.offset), f"in {what}: {exc.message}")
+            return None
+
+    def action(self, node: yaml.Node, scope: Scope, what: str) -> Assign | None:
+        text = self.scalar(node, what)
+        if text is None:
+            return None
+        try:
+            return resolve_assign(parse_assign_syntax(text), scope)
+        except ExpressionError as exc:
+            self.error_at(self.at_offset(node, exc.offset), f"in {what}: {exc.message}")
+            return None
+
+
+def scope_for(
+    domains: dict[str, tuple[Value, ...]], predicates: dict[str, Expr] | None = None
+) -> Scope:
+    names = list(domains) + list(predicates or {})
+    return Scope(domains, predicates, lambda name: closest(name, names))
+
+
+def _each(
+    reader: Reader, nodes: list[yaml.Node], parse: Callable[[yaml.Node], T | None]
+) -> Iterator[T]:
+    for node in nodes:
+        item = parse(node)
+        if item is not None:
+            yield item
+
+
+# ---- the flat model (section 8) -------------------------------------------------------------
+
+FLAT_KEYS = ("variables", "transitions", "specifications")
+_VARIABLE_KEYS = ("name", "domain", "initial", "kind", "description")
+_TRANSITION_KEYS = ("name", "kind", "guard", "actions", "description")
+_SPECIFICATION_KEYS = ("name", "invariant", "description")
+
+
+def read_variable(reader: Reader, node: yaml.Node, prefix: str = "") -> Variable | None:
+    fields = reader.mapping(node, "a variable", _VARIABLE_KEYS, required=("name", "domain"))
+    if fields is None or "name" not in fields or "domain" not in fields:
+        return None
+    name = reader.name(fields["name"][1], "variable name")
+    domain = read_domain(reader, fields["domain"][1])
+    kind = VariableKind.ESTIMATED
+    if "kind" in fields:
+        kind_text = reader.scalar(fields["kind"][1], "variable kind")
+        options = [k.value for k in VariableKind]
+        if kind_text is not None and kind_text not in options:
+            hint = closest(kind_text, options)
+            extra = f" (did you mean '{hint}'?)" if hint else ""
+            reader.error(
+                fields["kind"][1],
+                f"unknown variable kind '{kind_text}'{extra}; use one of {', '.join(options)}",
+            )
+            return None
+        if kind_text is not None:
+            kind = VariableKind(kind_text)
+    if name is None or domain is None:
+        return None
+    initial: Value = domain[0]
+    if "initial" in fields:
+        initial_node = fields["initial"][1]
+        text = reader.scalar(initial_node, "initial value")
+        if text is None:
+            return None
+        value = _domain_value(text, initial_node, domain == BOOL)
+        if value not in domain:
+            reader.error(
+                initial_node,
+                f"initial value '{text}' of '{prefix}{name}' is outside its domain "
+                f"{_show_domain(domain)}",
+            )
+            return None
+        initial = value
+    return Variable(prefix + name, domain, initial, kind, reader.at(node))
+
+
+def _domain_value(text: str, node: yaml.Node, is_bool: bool) -> Value:
+    if is_bool and isinstance(node, yaml.ScalarNode) and text.lower() in ("true", "false"):
+        return text.lower() == "true"
+    return text
+
+
+def _show_domain(domain: tuple[Value, ...]) -> str:
+    if domain == BOOL:
+        return "bool"
+    return "[" + ", ".join(str(v) for v in domain) + "]"
+
+
+def read_domain(reader: Reader, node: yaml.Node) -> tuple[Value, ...] | None:
+    if isinstance(node, yaml.ScalarNode):
+        if node.value == "bool":
+            return BOOL
+        reader.error(node, f"domain must be 'bool' or a list of values, not '{node.value}'")
+        return None
+    values = reader.sequence(node, "domain")
+    if not values:
+        if isinstance(node, yaml.SequenceNode):
+            reader.error(node, "domain must have at least one value")
+        return None
+    result: list[str] = []
+    for value_node in values:
+        text = reader.scalar(value_node, "domain value")
+        if text is None:
+            return None
+        if value_node.tag.endswith(":bool") or text in ("true", "false"):
+            reader.error(
+                value_node,
+                "use 'domain: bool' for booleans; true/false cannot be enumeration values",
+            )
+            return None
+        if not (is_name(text) and "." not in text) and not text.lstrip("-").isdigit():
+            reader.error(value_node, f"domain value '{text}' must be a plain name or an integer")
+            return None
+        if text in result:
+            reader.error(value_node, f"duplicate domain value '{text}'")
+            return None
+        result.append(text)
+    return tuple(result)
+
+
+def read_transition(
+    reader: Reader,
+    node: yaml.Node,
+    scope: Scope,
+    kinds: dict[str, Variable],
+) -> Transition | None:
+    fields = reader.mapping(node, "a transition", _TRANSITION_KEYS, required=("name",))
+    if fields is None or "name" not in fields:
+        return None
+    name = reader.name(fields["name"][1], "transition name")
+    kind = TransitionKind.CONTROLLED
+    if "kind" in fields:
+        text = reader.scalar(fields["kind"][1], "transition kind")
+        options = [k.value for k in TransitionKind]
+        if text is not None and text not in options:
+            hint = closest(text, options)
+            extra = f" (did you mean '{hint}'?)" if hint else ""
+            reader.error(
+                fields["kind"][1],
+                f"unknown transition kind '{text}'{extra}; use one of {', '.join(options)}",
+            )
+            return None
+        if text is not None:
+            kind = TransitionKind(text)
+    where = f"transition '{name}'"
+    guard: Expr | None = None
+    if "guard" in fields:
+        guard = reader.expression(fields["guard"][1], scope, f"the guard of {where}")
+        if guard is None:
+            return None
+    actions = read_actions(reader, fields.get("actions"), scope, where, kind, kinds)
+    if name is None or actions is None:
+        return None
+    if guard is None:
+        return Transition(name, kind, actions=actions, source=reader.at(node))
+    return Transition(name, kind, guard, actions, reader.at(node))
+
+
+def read_actions(
+    reader: Reader,
+    entry: tuple[yaml.Node, yaml.Node] | None,
+    scope: Scope,
+    where: str,
+    kind: TransitionKind,
+    variables: dict[str, Variable],
+) -> tuple[Assign, ...] | None:
+    if entry is None:
+        return ()
+    nodes = reader.sequence(entry[1], f"the actions of {where}")
+    actions: list[Assign] = []
+    ok = True
+    for action_node in nodes:
+        action = reader.action(action_node, scope, f"an action of {where}")
+        if action is None:
+            ok = False
+            continue
+        if any(a.target == action.target for a in actions):
+            reader.error(action_node, f"'{action.target}' is assigned twice in {where}")
+            ok = False
+            continue
+        target = variables[action.target]
+        if target.kind is VariableKind.MEASURED and kind in (
+            TransitionKind.CONTROLLED,
+            TransitionKind.AUTOMATIC,
+        ):
+            reader.error(
+                action_node,
+                f"{kind.value} {where} assigns measured variable '{action.target}'; measured "
+                "variables change only through effect or maintenance transitions",
+            )
+            ok = False
+            continue
+        actions.append(action)
+    return tuple(actions) if ok else None
+
+
+def read_specification(reader: Reader, node: yaml.Node, scope: Scope) -> Specification | None:
+    fields = reader.mapping(
+        node, "a specification", _SPECIFICATION_KEYS, required=("name", "invariant")
+    )
+    if fields is None or "name" not in fields or "invariant" not in fields:
+        return None
+    name = reader.name(fields["name"][1], "specification name")
+    invariant = reader.expression(
+        fields["invariant"][1], scope, f"the invariant of specification '{name}'"
+    )
+    if name is None or invariant is None:
+        return None
+    return Specification(name, invariant, reader.at(node))
+
+
+def read_flat(reader: Reader, top: dict[str, tuple[yaml.Node, yaml.Node]]) -> Model:
+    """Read the three section 8 lists into a checked `Model`."""
+    variable_nodes = reader.sequence(top["variables"][1], "variables") if "variables" in top else []
+    variables = list(_each(reader, variable_nodes, lambda n: read_variable(reader, n)))
+    reader.unique([(v.name, _node_at(variable_nodes, v.source)) for v in variables], "variable")
+    by_name = {v.name: v for v in variables}
+    scope = scope_for({v.name: v.domain for v in variables})
+
+    transition_nodes = (
+        reader.sequence(top["transitions"][1], "transitions") if "transitions" in top else []
+    )
+    transitions = list(
+        _each(reader, transition_nodes, lambda n: read_transition(reader, n, scope, by_name))
+    )
+    reader.unique(
+        [(t.name, _node_at(transition_nodes, t.source)) for t in transitions], "transition"
+    )
+
+    spec_nodes = (
+        reader.sequence(top["specifications"][1], "specifications")
+        if "specifications" in top
+        else []
+    )
+    specifications = list(_each(reader, spec_nodes, lambda n: read_specification(reader, n, scope)))
+    reader.unique(
+        [(s.name, _node_at(spec_nodes, s.source)) for s in specifications], "specification"
+    )
+    reader.raise_if_errors()
+    return Model(tuple(variables), tuple(transitions), tuple(specifications), reader.file)
+
+
+def _node_at(nodes: list[yaml.Node], location: SourceLocation | None) -> yaml.Node:
+    """The node a located item was read from (for duplicate-name messages)."""
+    for node in nodes:
+        if (
+            location
+            and node.start_mark.line + 1 == location.line
+            and (node.start_mark.column + 1 == location.column)
+        ):
+            fields = node.value if isinstance(node, yaml.MappingNode) else []
+            for key, value in fields:
+                if key.value == "name":
+                    return value  # type: ignore[no-any-return]
+            return node
+    return nodes[0]
+
+
+def load_model(text: str, file: str = "<model>") -> Model:
+    """Parse a model file's text (flat or station form) into a checked flat `Model`.
+
+    Raises `ModelError` listing every problem with its location.
+    """
+    reader = Reader(text, file)
+    root = reader.compose()
+    if root is None:
+        raise ModelError([Diagnostic(SourceLocation(file, 1, 1), "the model file is empty")])
+    top = reader.mapping(root, "the model", FLAT_KEYS)
+    reader.raise_if_errors()
+    assert top is not None
+    return read_flat(reader, top)

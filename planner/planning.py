@@ -1,0 +1,54 @@
+"""What a planning query asks and what a planner answers, shared by every engine."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum
+
+from planner.expressions import Expr, Value
+
+State = tuple[Value, ...]
+
+
+class PlanStatus(Enum):
+    FOUND = "found"
+    UNREACHABLE = "unreachable"  # no plan of at most `max_steps` steps
+    BAD_START = "bad_start"  # the start state is bad (or forbidden for this query)
+
+
+@dataclass(frozen=True)
+class PlanQuery:
+    """Plan from `start` to a state where `goal` holds, with the fewest steps.
+
+    `forbidden` are extra state predicates the plan must avoid, e.g. the goals of operations
+    that are not executing (monotonic abstraction, seed 000 sec. 4.3); `always` must hold in
+    every state before the goal is reached (an intention's `phi U goal`); `disabled`
+    transitions are removed for this query (timed-out effects, unavailable resources).
+    """
+
+    start: State
+    goal: Expr
+    max_steps: int = 100
+    maintenance: bool = False
+    forbidden: tuple[Expr, ...] = ()
+    always: Expr | None = None
+    disabled: frozenset[str] = frozenset()
+
+
+@dataclass(frozen=True)
+class PlanResult:
+    status: PlanStatus
+    plan: tuple[str, ...] = ()
+    states: tuple[State, ...] = ()  # the states visited, start and end included
+    violated: tuple[str, ...] = ()  # for BAD_START: the specifications (or forbidden[i])
+    max_steps: int = 0
+    engine: str = ""
+    statistics: dict[str, float] = field(default_factory=dict, compare=False)
+
+    @property
+    def found(self) -> bool:
+        return self.status is PlanStatus.FOUND
+
+    @property
+    def length(self) -> int:
+        return len(self.plan)

@@ -1,0 +1,112 @@
+"""The transition planner: minimal, safe plans over a station's transitions (seed 000 sec. 4.3).
+
+Built once per model: the BDD encoding, the bad states and the supervisor guards are computed
+here, then every query runs on one of the engines (`bdd`: symbolic breadth-first search, the
+default; `sat`: incremental SAT bounded model checking, the papers' method).
+"""
+
+from __future__ import annotations
+
+from functools import cached_property
+
+from planner.expressions import variables_of
+from planner.loading import Diagnostic, ModelError
+from planner.model import Model, SourceLocation
+from planner.planning import PlanQuery, PlanResult, PlanStatus
+from planner.semantics import compile_expr
+from planner.search import SymbolicSearch
+from planner.symbolic import SymbolicModel
+from planner.synthesis import (
+    SupervisorGuard,
+    automatic_cycle,
+    bad_states,
+    supervisor_guards,
+    violated_by,
+)
+
+ENGINES = ("bdd", "sat")
+
+
+def check_dynamics(sym: SymbolicModel) -> None:
+    """Model errors that need the state space: a cycle of automatic transitions."""
+    found = automatic_cycle(sym)
+    if found is None:
+        return
+    cycle, looping = found
+    first = sym.model.transition(cycle[0])
+    where = first.source or SourceLocation(sym.model.file, 1, 1)
+    read = set().union(*(variables_of(sym.model.transition(n).guard) for n in cycle))
+    state = sym.pick(looping)
+    shown = ", ".join(
+        f"{v.name}={_show(value)}"
+        for v, value in zip(sym.model.variables, state, strict=True)
+        if v.name in read
+    )
+    path = " -> ".join([*cycle, cycle[0]])
+    raise ModelError(
+        [
+            Diagnostic(
+                where,
+                f"automatic transitions can cycle forever: {path}"
+                + (f" (e.g. from {shown})" if shown else "")
+                + "; an automatic transition's actions should make some automatic guard false",
+            )
+        ]
+    )
+
+
+def _show(value: object) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return str(value)
+
+
+class TransitionPlanner:
+    def __init__(self, model: Model, engine: str = "bdd") -> None:
+        if engine not in ENGINES:
+            raise ValueError(f"unknown engine '{engine}'; use one of {', '.join(ENGINES)}")
+        self.model = model
+        self.engine = engine
+        self.sym = SymbolicModel(model)
+        check_dynamics(self.sym)
+        self.bad = bad_states(self.sym)
+        self._search = SymbolicSearch(self.sym, self.bad)
+
+    @cached_property
+    def guards(self) -> list[SupervisorGuard]:
+        return supervisor_guards(self.sym, self.bad)
+
+    @cached_property
+    def _bmc(self) -> object:
+        from planner.bmc import BoundedModelChecker
+
+        return BoundedModelChecker(self.sym, self.bad)
+
+    def plan(self, query: PlanQuery, engine: str | None = None) -> PlanResult:
+        chosen = engine or self.engine
+        if chosen == "sat":
+            from planner.bmc import BoundedModelChecker
+
+            checker = self._bmc
+            assert isinstance(checker, BoundedModelChecker)
+            result = checker.plan(query)
+        else:
+            result = self._search.plan(query)
+        if result.status is PlanStatus.BAD_START:
+            result = PlanResult(
+                PlanStatus.BAD_START,
+                violated=tuple(self.violated(query)),
+                max_steps=query.max_steps,
+                engine=result.engine,
+            )
+        return result
+
+    def violated(self, query: PlanQuery) -> list[str]:
+        """Why a start state is bad: the specifications it is bad for, then forbidden[i]."""
+        start = self.sym.state(query.start)
+        names = violated_by(self.sym, start) if start & self.bad != self.sym.false else []
+        index = self.model.variable_index
+        for i, predicate in enumerate(query.forbidden):
+            if compile_expr(predicate, index)(query.start):
+                names.append(f"forbidden[{i}]")
+        return names
