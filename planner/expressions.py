@@ -234,6 +234,10 @@ def _tokenize(text: str) -> list[_Token]:
         match = _TOKEN.match(text, pos)
         if match is None or match.end() == pos:
             start = pos + len(text[pos:]) - len(text[pos:].lstrip())
+            if text[start] == "=":
+                raise ExpressionError(
+                    "'=' is not an operator: use '==' to compare, ':=' to assign", start
+                )
             raise ExpressionError(f"unexpected character {text[start]!r}", start)
         kind = match.lastgroup
         assert kind is not None

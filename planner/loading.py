@@ -269,6 +269,8 @@ def read_variable(reader: Reader, node: yaml.Node, prefix: str = "") -> Variable
         return None
     name = reader.name(fields["name"][1], "variable name")
     domain = read_domain(reader, fields["domain"][1])
+    # A variable with a bad kind or initial value is still returned (its error recorded), so
+    # that expressions using it do not add "unknown variable" errors of their own.
     kind = VariableKind.ESTIMATED
     if "kind" in fields:
         kind_text = reader.scalar(fields["kind"][1], "variable kind")
@@ -280,8 +282,7 @@ def read_variable(reader: Reader, node: yaml.Node, prefix: str = "") -> Variable
                 fields["kind"][1],
                 f"unknown variable kind '{kind_text}'{extra}; use one of {', '.join(options)}",
             )
-            return None
-        if kind_text is not None:
+        elif kind_text is not None:
             kind = VariableKind(kind_text)
     if name is None or domain is None:
         return None
@@ -289,17 +290,15 @@ def read_variable(reader: Reader, node: yaml.Node, prefix: str = "") -> Variable
     if "initial" in fields:
         initial_node = fields["initial"][1]
         text = reader.scalar(initial_node, "initial value")
-        if text is None:
-            return None
-        value = _domain_value(text, initial_node, domain == BOOL)
-        if value not in domain:
+        value = _domain_value(text, initial_node, domain == BOOL) if text is not None else None
+        if text is not None and value not in domain:
             reader.error(
                 initial_node,
                 f"initial value '{text}' of '{prefix}{name}' is outside its domain "
                 f"{_show_domain(domain)}",
             )
-            return None
-        initial = value
+        elif value is not None:
+            initial = value
     return Variable(prefix + name, domain, initial, kind, reader.at(node))
 
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from planner.model import TransitionKind
 from planner.planning import PlanQuery, PlanResult, PlanStatus, State
-from planner.symbolic import Function, SymbolicModel, SymbolicTransition
+from planner.symbolic import Function, SymbolicModel, SymbolicTransition, cudd
 from planner.synthesis import automatic_guard
 
 
@@ -60,7 +60,10 @@ class SymbolicSearch:
                 )
             if depth >= query.max_steps:
                 break
-            frontier = self._image(layers[-1] & always, usable, automatic) & allowed & ~reached
+            # any set between the layer and everything reached has the same new successors;
+            # `restrict` picks a small BDD among them
+            source = cudd.restrict(layers[-1], layers[-1] | ~reached) & always
+            frontier = self._image(source, usable, automatic) & allowed & ~reached
             if frontier == sym.false:
                 break  # fixpoint: the goal is unreachable at any length
             layers.append(frontier)

@@ -68,20 +68,72 @@ class SymbolicTransition:
         return self.transition.kind
 
 
+def variable_order(model: Model, bits: Mapping[str, tuple[str, ...]]) -> list[str]:
+    """A static BDD variable order: the bits of variables compared or copied interleaved.
+
+    `x == y` and `x := y` relate two variables bit by bit; with their bits adjacent the BDD
+    of that relation is linear in the width, with the variables apart it is exponential.
+    Groups keep the order of their first variable's declaration.
+    """
+    parent = {v.name: v.name for v in model.variables}
+
+    def find(name: str) -> str:
+        while parent[name] != name:
+            parent[name] = parent[parent[name]]
+            name = parent[name]
+        return name
+
+    def union(a: str, b: str) -> None:
+        parent[find(b)] = find(a)
+
+    def visit(expr: Expr) -> None:
+        match expr:
+            case SameValue(left, right):
+                union(left, right)
+            case Not(arg):
+                visit(arg)
+            case And(args) | Or(args):
+                for arg in args:
+                    visit(arg)
+            case Implies(left, right):
+                visit(left)
+                visit(right)
+
+    for t in model.transitions:
+        visit(t.guard)
+        for action in t.actions:
+            if action.source is not None:
+                union(action.target, action.source)
+    for spec in model.specifications:
+        visit(spec.invariant)
+    groups: dict[str, list[str]] = {}
+    for v in model.variables:
+        groups.setdefault(find(v.name), []).append(v.name)
+    order: list[str] = []
+    for members in groups.values():
+        width = max(len(bits[m]) for m in members)
+        for j in range(width):
+            order.extend(bits[m][j] for m in members if j < len(bits[m]))
+    return order
+
+
 class SymbolicModel:
     """A model's variables as BDD bits, its predicates as BDDs, its transitions as images."""
 
-    def __init__(self, model: Model, *, reordering: bool = True) -> None:
+    def __init__(self, model: Model) -> None:
         self.model = model
         self.bdd = cudd.BDD()
-        self.bdd.configure(reordering=reordering)
+        # Dynamic reordering fires on node-count thresholds that depend on the order `dd`
+        # builds cubes in (hash-seed dependent), which would make plans vary between runs;
+        # `sift` reorders at fixed points instead.
+        self.bdd.configure(reordering=False)
         self.bits: dict[str, tuple[str, ...]] = {}
         for i, variable in enumerate(model.variables):
             width = max(1, (len(variable.domain) - 1).bit_length())
             names = tuple(f"v{i}_{j}" for j in range(width))
             self.bits[variable.name] = names
-        self.bdd.declare(*(b for bits in self.bits.values() for b in bits))
         self.state_bits: tuple[str, ...] = tuple(b for bits in self.bits.values() for b in bits)
+        self.bdd.declare(*variable_order(model, self.bits))
         self.true: Function = self.bdd.true
         self.false: Function = self.bdd.false
         self._value_cache: dict[tuple[str, Value], Function] = {}
@@ -91,6 +143,10 @@ class SymbolicModel:
             self._transition(t) for t in model.transitions
         )
         self.by_name = {t.name: t for t in self.transitions}
+
+    def sift(self) -> None:
+        """Reorder the BDD variables once by sifting (deterministic: called at fixed points)."""
+        cudd.reorder(self.bdd)
 
     # -- encoding ------------------------------------------------------------------------------
 
@@ -262,7 +318,7 @@ class SymbolicModel:
         return int(self.bdd.count(states & self.valid, nvars=len(self.state_bits)))
 
     def contains(self, states: Function, values: State) -> bool:
-        return (states & self.state(values)) != self.false
+        return bool((states & self.state(values)) != self.false)
 
     def node_count(self, states: Function) -> int:
-        return int(len(states))
+        return len(states)

@@ -13,8 +13,8 @@ from planner.expressions import variables_of
 from planner.loading import Diagnostic, ModelError
 from planner.model import Model, SourceLocation
 from planner.planning import PlanQuery, PlanResult, PlanStatus
-from planner.semantics import compile_expr
 from planner.search import SymbolicSearch
+from planner.semantics import compile_expr
 from planner.symbolic import SymbolicModel
 from planner.synthesis import (
     SupervisorGuard,
@@ -70,6 +70,7 @@ class TransitionPlanner:
         self.sym = SymbolicModel(model)
         check_dynamics(self.sym)
         self.bad = bad_states(self.sym)
+        self.sym.sift()  # the specifications and guards now in the manager shape a good order
         self._search = SymbolicSearch(self.sym, self.bad)
 
     @cached_property
@@ -104,7 +105,7 @@ class TransitionPlanner:
     def violated(self, query: PlanQuery) -> list[str]:
         """Why a start state is bad: the specifications it is bad for, then forbidden[i]."""
         start = self.sym.state(query.start)
-        names = violated_by(self.sym, start) if start & self.bad != self.sym.false else []
+        names = sorted(violated_by(self.sym, start)) if start & self.bad != self.sym.false else []
         index = self.model.variable_index
         for i, predicate in enumerate(query.forbidden):
             if compile_expr(predicate, index)(query.start):

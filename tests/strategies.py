@@ -3,14 +3,23 @@
 Models are plain dicts shaped like the YAML (``variables``/``transitions``/``specifications``)
 so the same example can be fed to the real planner and to ``tests/oracle.py``.
 Generation is biased towards useful examples: automatic transitions mostly make
-progress (no automatic cycles), goals are mostly small conjunctions of atoms.
+progress (no automatic cycles), and queries use the oracle to pick good starts and goals
+reached by short random walks, so that many plans are non-trivial.
 """
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from hypothesis import strategies as st
+
+if TYPE_CHECKING:
+    from tests import oracle as O
+else:
+    try:
+        from tests import oracle as O
+    except ImportError:  # no tests/__init__.py: pytest put tests/ itself on sys.path
+        import oracle as O
 
 VAR_NAMES = ("a", "b", "c", "b.c", "x1", "r1.pos", "r2.ref", "nr.running", "d.e_f", "y")
 VAR_KINDS = ("measured", "estimated", "command")
@@ -125,7 +134,7 @@ def _actions(draw: st.DrawFn, variables: list[Var]) -> list[str]:
 def _progressing_automatic(draw: st.DrawFn, variables: list[Var]) -> tuple[str, list[str]]:
     """Guard ``x == v_i && ...``, action ``x := v_j`` with j > i.
 
-    Every such step raises the sum of value indices, so these can never form a cycle.
+    Each such step raises the sum of value indices, so these alone never form a cycle.
     """
     candidates = [v for v in variables if len(domain_values(v)) >= 2]
     var = draw(st.sampled_from(candidates))
@@ -140,14 +149,19 @@ def _progressing_automatic(draw: st.DrawFn, variables: list[Var]) -> tuple[str, 
 
 @st.composite
 def _structured(draw: st.DrawFn, variables: list[Var]) -> tuple[str, list[str]]:
-    """Guard ``x == v_i [&& atom]``, actions ``x := v_j`` (j != i) [+ one more]: the
-    station-like shape that keeps the state graph connected so plans are non-trivial."""
+    """Station-like shapes that keep the state graph connected so plans are non-trivial:
+    a chain step ``x == v_i -> x := v_i+1`` or a goto ``x != v_j -> x := v_j``, sometimes
+    with a precondition on another variable and a second action."""
     var = draw(st.sampled_from(variables))
     values = domain_values(var)
-    i, j = draw(st.permutations(range(len(values))))[:2]
-    guard = f"{var['name']} == {_text(values[i])}"
+    i = draw(st.integers(0, len(values) - 1))
+    j = (i + 1) % len(values)
+    if draw(st.integers(0, 2)) < 2:
+        guard = f"{var['name']} == {_text(values[i])}"
+    else:
+        guard = f"{var['name']} != {_text(values[j])}"
     others = [v for v in variables if v is not var]
-    if draw(st.booleans()):  # a precondition on another variable makes plans longer
+    if draw(st.integers(0, 2)) == 2:  # precondition on another variable: longer plans
         other = draw(st.sampled_from(others))
         guard += f" && {other['name']} == {_text(draw(st.sampled_from(domain_values(other))))}"
     elif draw(st.integers(0, 3)) == 3:
@@ -198,13 +212,15 @@ def flat_models(draw: st.DrawFn, max_vars: int = 5, max_transitions: int = 8) ->
 
     kinds = [k for k, w in TRANSITION_KIND_WEIGHTS for _ in range(w)]
     transitions: list[dict[str, Any]] = []
-    for i in range(draw(st.integers(1, max(1, max_transitions)))):
+    top = max(1, max_transitions)
+    low = 1 if draw(st.integers(0, 3)) == 3 else (top + 1) // 2  # mostly the upper half
+    for i in range(draw(st.integers(low, top))):
         kind = draw(st.sampled_from(kinds))
         if kind == "automatic" and draw(st.integers(0, 4)) < 4:
             guard, actions = draw(_progressing_automatic(variables))
         elif kind == "effect":
             guard, actions = draw(_effect(variables))
-        elif draw(st.integers(0, 2)) < 2:
+        elif kind != "automatic" and draw(st.integers(0, 2)) < 2:
             guard, actions = draw(_structured(variables))
         else:
             guard, actions = draw(random_expression(variables)), draw(_actions(variables))
@@ -217,6 +233,17 @@ def flat_models(draw: st.DrawFn, max_vars: int = 5, max_transitions: int = 8) ->
         transitions.append(entry)
 
     specs = [draw(_specification(variables, i)) for i in range(draw(st.integers(0, 2)))]
+    # The planner rejects controlled and automatic transitions that assign measured variables
+    # (only the world and operators change those); such variables become estimated instead.
+    controlled_targets = {
+        action.split(":=")[0].strip()
+        for t in transitions
+        if t.get("kind", "controlled") in ("controlled", "automatic")
+        for action in t["actions"]
+    }
+    for var in variables:
+        if var.get("kind") == "measured" and var["name"] in controlled_targets:
+            var["kind"] = "estimated"
     return {"variables": variables, "transitions": transitions, "specifications": specs}
 
 
@@ -255,19 +282,55 @@ def _goal(draw: st.DrawFn, model: dict[str, Any], start: dict[str, Any]) -> str:
 
 
 @st.composite
+def _walk_goal(draw: st.DrawFn, m: O.OracleModel, start: O.State, maintenance: bool) -> str | None:
+    """Atoms describing where a short random walk of legal steps ends (None if nowhere new).
+
+    The oracle is used only to propose the example; the minimal plan may still be
+    shorter than the walk, or absent if other constraints get in the way.
+    """
+    bad = O.bad_states(m)
+    s = start
+    seen = {start}
+    for _ in range(7 - draw(st.integers(1, 6))):  # Hypothesis favours small draws
+        succs = [t for _, t in O.steps(m, s, maintenance=maintenance)]
+        options = [t for t in succs if t not in bad and t not in seen]
+        if not options:
+            break
+        s = draw(st.sampled_from(options))
+        seen.add(s)
+    changed = [i for i, v in enumerate(m.variables) if s[i] != start[i]]
+    if not changed:
+        return None
+    if draw(st.booleans()):
+        changed = list(range(len(m.variables)))  # the whole end state: longer plans
+    else:
+        changed = draw(st.lists(st.sampled_from(changed), min_size=1, max_size=2, unique=True))
+    return " && ".join(f"{m.variables[i].name} == {_text(s[i])}" for i in sorted(changed))
+
+
+@st.composite
 def queries(draw: st.DrawFn, model: dict[str, Any]) -> dict[str, Any]:
-    """``{"start": name->value, "goal": expression, "maintenance": bool}`` for ``model``."""
+    """``{"start": name->value, "goal": expression, "maintenance": bool}`` for ``model``.
+
+    Starts are mostly the initial state or a random good state (some are bad, to cover
+    ``bad_start``); goals are mostly the end of a random walk, else blind atoms/expressions.
+    """
     variables: list[Var] = model["variables"]
-    from_initial = draw(st.booleans())
-    start = {
-        v["name"]: _initial(v) if from_initial else draw(st.sampled_from(domain_values(v)))
-        for v in variables
-    }
-    return {
-        "start": start,
-        "goal": draw(_goal(model, start)),
-        "maintenance": draw(st.booleans()),
-    }
+    m = O.parse_model(model)
+    good = sorted(set(O.all_states(m)) - O.bad_states(m), key=repr)
+    mode = draw(st.integers(0, 9))
+    if mode < 6 and good:
+        start = draw(st.sampled_from(good))
+    elif mode < 9:
+        start = O.initial_state(m)
+    else:
+        start = tuple(draw(st.sampled_from(domain_values(v))) for v in variables)
+    maintenance = draw(st.booleans())
+    start_dict = O.state_to_dict(m, start)
+    goal = draw(_walk_goal(m, start, maintenance)) if draw(st.integers(0, 3)) < 3 else None
+    if goal is None:
+        goal = draw(_goal(model, start_dict))
+    return {"start": start_dict, "goal": goal, "maintenance": maintenance}
 
 
 @st.composite

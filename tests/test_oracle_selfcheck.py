@@ -460,7 +460,7 @@ def test_strategies_yield_valid_models_and_plan_agrees_with_replay(data: st.Data
     d = data.draw(S.flat_models(max_vars=3, max_transitions=4))
     m = O.parse_model(d)
     q = data.draw(S.queries(d))
-    ext = data.draw(S.query_extensions(d))
+    ext = data.draw(S.query_extensions(d, q["start"]))
     start = O.state_from_dict(m, q["start"])
     query: dict[str, Any] = {
         "maintenance": q["maintenance"],

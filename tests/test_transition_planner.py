@@ -1,0 +1,129 @@
+"""The planners against the brute-force oracle on random small models (section 8 semantics)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+import yaml
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from planner.expressions import parse_expr
+from planner.loading import ModelError, load_model, scope_for
+from planner.model import Model, TransitionKind
+from planner.planning import PlanQuery, PlanStatus
+from planner.semantics import Semantics
+from planner.transition_planner import TransitionPlanner
+
+try:
+    from tests import oracle as O
+    from tests.strategies import flat_models, queries, query_extensions
+except ImportError:  # pragma: no cover - run from inside tests/
+    import oracle as O  # type: ignore[no-redef]
+    from strategies import flat_models, queries, query_extensions  # type: ignore[no-redef]
+
+SETTINGS = settings(
+    max_examples=120,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+)
+
+
+def _load(model_dict: dict[str, Any]) -> Model:
+    return load_model(yaml.safe_dump(model_dict, sort_keys=False), "random.yaml")
+
+
+def _planner_or_cycle(model_dict: dict[str, Any]) -> TransitionPlanner | None:
+    """The planner, or None after checking that planner and oracle agree on a cycle."""
+    oracle_model = O.parse_model(model_dict)
+    model = _load(model_dict)
+    if O.has_automatic_cycle(oracle_model):
+        with pytest.raises(ModelError, match="cycle forever"):
+            TransitionPlanner(model)
+        return None
+    return TransitionPlanner(model)
+
+
+def _query(model: Model, q: dict[str, Any], ext: dict[str, Any]) -> PlanQuery:
+    scope = scope_for(model.domains)
+    return PlanQuery(
+        start=tuple(q["start"][v.name] for v in model.variables),
+        goal=parse_expr(q["goal"], scope),
+        max_steps=ext["max_steps"],
+        maintenance=q["maintenance"],
+        forbidden=tuple(parse_expr(f, scope) for f in ext["forbidden"]),
+        always=parse_expr(ext["phi"], scope) if ext["phi"] is not None else None,
+        disabled=frozenset(ext["disabled"]),
+    )
+
+
+@SETTINGS
+@given(data=st.data())
+def test_plans_are_minimal_legal_and_agree_with_the_oracle(data: st.DataObject) -> None:
+    model_dict = data.draw(flat_models())
+    planner = _planner_or_cycle(model_dict)
+    if planner is None:
+        return
+    q = data.draw(queries(model_dict))
+    ext = data.draw(query_extensions(model_dict, q["start"]))
+    if data.draw(st.booleans()):  # half the queries plain, as `sp plan` asks them
+        ext = {"forbidden": [], "phi": None, "disabled": [], "max_steps": 10}
+    query = _query(planner.model, q, ext)
+    oracle_model = O.parse_model(model_dict)
+    options: dict[str, Any] = {
+        "maintenance": q["maintenance"],
+        "forbidden": tuple(ext["forbidden"]),
+        "phi": ext["phi"],
+        "disabled": frozenset(ext["disabled"]),
+    }
+    expected = O.plan(oracle_model, query.start, q["goal"], max_steps=ext["max_steps"], **options)
+    for engine in ("bdd", "sat"):
+        result = planner.plan(query, engine=engine)
+        assert result.status.value == expected.status, engine
+        if result.status is PlanStatus.FOUND:
+            assert result.length == expected.length, engine
+            problem = O.replay(oracle_model, query.start, list(result.plan), q["goal"], **options)
+            assert problem is None, f"{engine}: {problem}"
+            assert result.states[0] == query.start
+            assert len(result.states) == result.length + 1
+        elif result.status is PlanStatus.BAD_START:
+            assert list(result.violated) == expected.violated, engine
+
+
+@SETTINGS
+@given(model_dict=flat_models())
+def test_bad_states_equal_explicit_enumeration(model_dict: dict[str, Any]) -> None:
+    planner = _planner_or_cycle(model_dict)
+    if planner is None:
+        return
+    oracle_model = O.parse_model(model_dict)
+    expected = O.bad_states(oracle_model)
+    sym = planner.sym
+    assert sym.count(planner.bad) == len(expected)
+    for state in O.all_states(oracle_model):
+        assert sym.contains(planner.bad, state) == (state in expected), state
+
+
+@SETTINGS
+@given(model_dict=flat_models())
+def test_supervisor_guards_forbid_exactly_the_steps_into_bad_states(
+    model_dict: dict[str, Any],
+) -> None:
+    planner = _planner_or_cycle(model_dict)
+    if planner is None:
+        return
+    oracle_model = O.parse_model(model_dict)
+    bad = O.bad_states(oracle_model)
+    guarded = Semantics(planner.model, {g.transition: g.guard for g in planner.guards})
+    plain = Semantics(planner.model)
+    for state in O.all_states(oracle_model):
+        if state in bad or plain.automatic_enabled(state):
+            continue
+        for with_guard, without in zip(guarded.transitions, plain.transitions, strict=True):
+            if without.kind not in (TransitionKind.CONTROLLED, TransitionKind.MAINTENANCE):
+                continue
+            if not without.guard(state):
+                continue
+            leads_to_bad = without.apply(state) in bad
+            assert with_guard.guard(state) == (not leads_to_bad), (without.name, state)
