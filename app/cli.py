@@ -17,9 +17,10 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 from planner.expressions import Expr, ExpressionError, parse_expr
-from planner.loading import Diagnostic, ModelError, closest, load_model, scope_for
+from planner.loading import Diagnostic, ModelError, closest, scope_for
 from planner.model import Model, SourceLocation, TransitionKind, VariableKind
 from planner.planning import PlanQuery, PlanResult, PlanStatus, State
+from planner.station import Station, load_station
 
 
 class UsageError(Exception):
@@ -75,17 +76,18 @@ def _non_negative(text: str) -> int:
     return value
 
 
-def _read_model(path: str) -> Model:
+def _read_station(path: str) -> Station:
     try:
         text = Path(path).read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise UsageError(f"{path}: cannot read the model: {exc}") from None
-    return load_model(text, path)
+    return load_station(text, path)
 
 
-def _goal(model: Model, text: str) -> Expr:
+def _goal(station: Station, text: str) -> Expr:
+    """The goal; besides variables it may name predicates (`tighten_bp1.goal`)."""
     try:
-        return parse_expr(text, scope_for(model.domains))
+        return parse_expr(text, scope_for(station.model.domains, station.predicates))
     except ExpressionError as exc:
         raise ModelError(
             [Diagnostic(SourceLocation("--goal", 1, exc.offset + 1), exc.message)]
@@ -95,8 +97,9 @@ def _goal(model: Model, text: str) -> Expr:
 def _plan(args: argparse.Namespace, started: float) -> int:
     from planner.transition_planner import TransitionPlanner
 
-    model = _read_model(args.model)
-    goal = _goal(model, args.goal)
+    station = _read_station(args.model)
+    model = station.model
+    goal = _goal(station, args.goal)
     start = _read_state(model, args.state) if args.state else tuple(model.initial_values().values())
     planner = TransitionPlanner(model, engine=args.engine)
     query = PlanQuery(start, goal, max_steps=args.max_steps, maintenance=args.maintenance)
@@ -195,7 +198,7 @@ def _state_error(path: str, line: int, column: int, message: str) -> NoReturn:
 def _check(args: argparse.Namespace) -> int:
     from planner.transition_planner import TransitionPlanner
 
-    model = _read_model(args.model)
+    model = _read_station(args.model).model
     planner = TransitionPlanner(model)
     report = _size_report(model, planner)
     if args.json:

@@ -394,10 +394,17 @@ class Scope:
         domains: Mapping[str, tuple[Value, ...]],
         predicates: Mapping[str, Expr] | None = None,
         suggest: Callable[[str], str | None] | None = None,
+        aliases: Mapping[str, str] | None = None,
     ) -> None:
         self.domains = domains
         self.predicates = predicates or {}
         self.suggest = suggest or (lambda name: None)
+        self.aliases = aliases or {}
+
+    def canonical(self, word: Word) -> Word:
+        """The word with a local name (a resource's `ref`) replaced by its global name."""
+        name = self.aliases.get(word.text)
+        return word if name is None else Word(name, word.offset)
 
     def is_bool(self, name: str) -> bool:
         return self.domains[name] == (False, True)
@@ -439,10 +446,11 @@ def resolve(node: SyntaxNode, scope: Scope) -> Expr:
             return Implies(resolve(node.args[0], scope), resolve(node.args[1], scope))
         case "word":
             assert node.word is not None
-            return _resolve_word(node.word, scope)
+            return _resolve_word(scope.canonical(node.word), scope)
         case "cmp":
             assert node.word is not None and node.right is not None
-            result = _resolve_comparison(node.word, node.right, scope)
+            left, right = scope.canonical(node.word), scope.canonical(node.right)
+            result = _resolve_comparison(left, right, scope)
             return negation(result) if node.compare == "!=" else result
     raise AssertionError(node.op)
 
@@ -489,7 +497,7 @@ def parse_expr(text: str, scope: Scope) -> Expr:
 
 
 def resolve_assign(syntax: AssignSyntax, scope: Scope) -> Assign:
-    target, value = syntax.target, syntax.value
+    target, value = scope.canonical(syntax.target), scope.canonical(syntax.value)
     if target.text not in scope.domains:
         raise scope.unknown(target)
     if value.text in scope.domains:
@@ -506,9 +514,42 @@ def parse_assign(text: str, scope: Scope) -> Assign:
     return resolve_assign(parse_assign_syntax(text), scope)
 
 
-def substitute_names(text: str, mapping: Mapping[str, str]) -> str:
-    """Replace `{param}` placeholders, used when an ability is instantiated per parameter."""
-    result = text
-    for key, value in mapping.items():
-        result = result.replace("{" + key + "}", value)
-    return result
+_PLACEHOLDER = re.compile(r"\{([A-Za-z_][A-Za-z0-9_]*)\}")
+
+
+def substitute(text: str, values: Mapping[str, str]) -> tuple[str, Callable[[int], int]]:
+    """Replace `{param}` placeholders (instantiation per parameter).
+
+    Returns the text and a function mapping an offset in it back to the template, so that
+    errors in an instantiated expression still point at the template the engineer wrote.
+    """
+    pieces: list[str] = []
+    spans: list[tuple[int, int, int]] = []  # (start in result, start in template, length)
+    position = 0
+    for match in _PLACEHOLDER.finditer(text):
+        name = match.group(1)
+        if name not in values:
+            continue
+        pieces.append(text[position : match.start()])
+        start = sum(map(len, pieces))
+        spans.append((start, match.start(), len(values[name])))
+        pieces.append(values[name])
+        position = match.end()
+    pieces.append(text[position:])
+    result = "".join(pieces)
+
+    def back(offset: int) -> int:
+        shift = 0
+        for start, template_start, length in spans:
+            if offset < start:
+                break
+            if offset < start + length:
+                return template_start
+            shift = (
+                template_start
+                + (len(text[template_start:].split("}", 1)[0]) + 1)
+                - (start + length)
+            )
+        return offset + shift
+
+    return result, back

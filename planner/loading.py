@@ -9,7 +9,7 @@ engineer sees every mistake at once.  Pure: text in, `Model` out.
 from __future__ import annotations
 
 import difflib
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from typing import TypeVar
 
@@ -26,6 +26,7 @@ from planner.expressions import (
     parse_syntax,
     resolve,
     resolve_assign,
+    substitute,
 )
 from planner.model import (
     BOOL,
@@ -59,7 +60,8 @@ class ModelError(Exception):
     """A model that cannot be used; `diagnostics` lists every problem found, in file order."""
 
     def __init__(self, diagnostics: list[Diagnostic]) -> None:
-        self.diagnostics = sorted(diagnostics, key=lambda d: (d.location.line, d.location.column))
+        unique = dict.fromkeys(diagnostics)  # an ability template reports once, not per value
+        self.diagnostics = sorted(unique, key=lambda d: (d.location.line, d.location.column))
         super().__init__("\n".join(str(d) for d in self.diagnostics))
 
 
@@ -216,34 +218,54 @@ class Reader:
 
     # -- expressions ---------------------------------------------------------------------------
 
-    def expression(self, node: yaml.Node, scope: Scope, what: str) -> Expr | None:
+    def template(
+        self, node: yaml.Node, what: str, values: Mapping[str, str] | None
+    ) -> tuple[str, Callable[[int], int]] | None:
+        """A scalar's text with `{param}` placeholders filled in, and the offset map back."""
         text = self.scalar(node, what)
         if text is None:
             return None
         if isinstance(node, yaml.ScalarNode) and node.tag.endswith(":bool"):
             text = text.lower()  # YAML's True/yes spelled as a guard
+        if not values:
+            return text, lambda offset: offset
+        return substitute(text, values)
+
+    def expression(
+        self, node: yaml.Node, scope: Scope, what: str, values: Mapping[str, str] | None = None
+    ) -> Expr | None:
+        filled = self.template(node, what, values)
+        if filled is None:
+            return None
+        text, back = filled
         try:
             return resolve(parse_syntax(text), scope)
         except ExpressionError as exc:
-            self.error_at(self.at_offset(node, exc.offset), f"in {what}: {exc.message}")
+            self.error_at(self.at_offset(node, back(exc.offset)), f"in {what}: {exc.message}")
             return None
 
-    def action(self, node: yaml.Node, scope: Scope, what: str) -> Assign | None:
-        text = self.scalar(node, what)
-        if text is None:
+    def action(
+        self, node: yaml.Node, scope: Scope, what: str, values: Mapping[str, str] | None = None
+    ) -> Assign | None:
+        filled = self.template(node, what, values)
+        if filled is None:
             return None
+        text, back = filled
         try:
             return resolve_assign(parse_assign_syntax(text), scope)
         except ExpressionError as exc:
-            self.error_at(self.at_offset(node, exc.offset), f"in {what}: {exc.message}")
+            self.error_at(self.at_offset(node, back(exc.offset)), f"in {what}: {exc.message}")
             return None
 
 
 def scope_for(
-    domains: dict[str, tuple[Value, ...]], predicates: dict[str, Expr] | None = None
+    domains: Mapping[str, tuple[Value, ...]],
+    predicates: Mapping[str, Expr] | None = None,
+    aliases: Mapping[str, str] | None = None,
 ) -> Scope:
-    names = list(domains) + list(predicates or {})
-    return Scope(domains, predicates, lambda name: closest(name, names))
+    """Names known to an expression: variables, named predicates, and local aliases."""
+    names = [*domains, *(predicates or {}), *(aliases or {})]
+    return Scope(domains, predicates, lambda name: closest(name, names), aliases)
 
 
 def _each(
@@ -350,8 +372,14 @@ def read_transition(
     reader: Reader,
     node: yaml.Node,
     scope: Scope,
-    kinds: dict[str, Variable],
+    kinds: Mapping[str, Variable],
+    values: Mapping[str, str] | None = None,
+    label: str = "",
 ) -> Transition | None:
+    """A transition as written; `values` fill `{param}` placeholders (ability instances).
+
+    `label` prefixes the name in messages (`r1.goto.` for an ability's transitions).
+    """
     fields = reader.mapping(node, "a transition", _TRANSITION_KEYS, required=("name",))
     if fields is None or "name" not in fields:
         return None
@@ -370,13 +398,13 @@ def read_transition(
             return None
         if text is not None:
             kind = TransitionKind(text)
-    where = f"transition '{name}'"
+    where = f"transition '{label}{name}'"
     guard: Expr | None = None
     if "guard" in fields:
-        guard = reader.expression(fields["guard"][1], scope, f"the guard of {where}")
+        guard = reader.expression(fields["guard"][1], scope, f"the guard of {where}", values)
         if guard is None:
             return None
-    actions = read_actions(reader, fields.get("actions"), scope, where, kind, kinds)
+    actions = read_actions(reader, fields.get("actions"), scope, where, kind, kinds, values)
     if name is None or actions is None:
         return None
     if guard is None:
@@ -390,7 +418,8 @@ def read_actions(
     scope: Scope,
     where: str,
     kind: TransitionKind,
-    variables: dict[str, Variable],
+    variables: Mapping[str, Variable],
+    values: Mapping[str, str] | None = None,
 ) -> tuple[Assign, ...] | None:
     if entry is None:
         return ()
@@ -398,7 +427,7 @@ def read_actions(
     actions: list[Assign] = []
     ok = True
     for action_node in nodes:
-        action = reader.action(action_node, scope, f"an action of {where}")
+        action = reader.action(action_node, scope, f"an action of {where}", values)
         if action is None:
             ok = False
             continue
@@ -489,11 +518,20 @@ def load_model(text: str, file: str = "<model>") -> Model:
 
     Raises `ModelError` listing every problem with its location.
     """
+    from planner.station import load_station  # the station form builds on this module
+
+    return load_station(text, file).model
+
+
+def read_top(
+    text: str, file: str, station_keys: tuple[str, ...]
+) -> tuple[Reader, dict[str, tuple[yaml.Node, yaml.Node]]]:
+    """The composed top-level mapping of a model file, its keys checked."""
     reader = Reader(text, file)
     root = reader.compose()
     if root is None:
         raise ModelError([Diagnostic(SourceLocation(file, 1, 1), "the model file is empty")])
-    top = reader.mapping(root, "the model", FLAT_KEYS)
+    top = reader.mapping(root, "the model", FLAT_KEYS + station_keys)
     reader.raise_if_errors()
     assert top is not None
-    return read_flat(reader, top)
+    return reader, top

@@ -1,0 +1,570 @@
+"""The station form of a model: resources, abilities, operations, intentions (docs/models.md).
+
+It compiles to the flat `Model` of DESIGN.md section 8, and keeps what the runner and the
+operation planner need besides: each ability's standard predicates and transitions (seed 003
+sec. II-C), the restart abilities (seed 001 VIII-A), and the operations and intentions
+(seed 000 Definitions 5 and 6).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import yaml
+
+from planner.expressions import (
+    TRUE,
+    Assign,
+    BoolVar,
+    Equals,
+    Expr,
+    Not,
+    SameValue,
+    Scope,
+    Value,
+    conjunction,
+    is_name,
+    substitute,
+)
+from planner.loading import (
+    Reader,
+    _each,
+    _node_at,
+    read_actions,
+    read_flat,
+    read_specification,
+    read_top,
+    read_transition,
+    read_variable,
+    scope_for,
+)
+from planner.model import Model, Specification, Transition, TransitionKind, Variable
+
+STATION_KEYS = ("station", "description", "resources", "operations", "intentions")
+STANDARD_PREDICATES = ("enabled", "starting", "executing", "finished", "resetting")
+_RESOURCE_KEYS = ("name", "description", "variables", "abilities", "transitions")
+_ABILITY_KEYS = (
+    "name",
+    "description",
+    "parameter",
+    "predicates",
+    "transitions",
+    "instances",
+    "restart",
+)
+_INSTANCE_KEYS = ("guard", "actions")
+_OPERATION_KEYS = (
+    "name",
+    "description",
+    "parameter",
+    "precondition",
+    "effects",
+    "goal",
+    "actions",
+)
+_INTENTION_KEYS = ("name", "description", "precondition", "goal", "always", "actions")
+
+
+@dataclass(frozen=True)
+class Ability:
+    """One (instantiated) ability of a resource: its named predicates and its transitions."""
+
+    resource: str
+    name: str  # e.g. goto_bp1
+    template: str  # e.g. goto
+    value: str | None  # the parameter value of this instance
+    predicates: dict[str, Expr]
+    transitions: tuple[str, ...]
+    restart: bool = False
+
+    @property
+    def qualified(self) -> str:
+        return f"{self.resource}.{self.name}"
+
+
+@dataclass(frozen=True)
+class Resource:
+    name: str
+    description: str
+    variables: tuple[str, ...]
+    abilities: tuple[str, ...]  # qualified ability names
+    transitions: tuple[str, ...]  # every transition belonging to the resource
+
+
+@dataclass(frozen=True)
+class Operation:
+    """`<precondition, effects, goal, actions>` (seed 000 Definition 5)."""
+
+    name: str
+    precondition: Expr
+    effects: tuple[Assign, ...]
+    goal: Expr
+    actions: tuple[Assign, ...] = ()
+    description: str = ""
+
+    def planning_goal(self, values: Mapping[str, Value]) -> Expr:
+        """The transition planner's goal: `goal` and the effects evaluated in `values`."""
+        return conjunction([self.goal, *(effect_as_goal(a, values) for a in self.effects)])
+
+
+@dataclass(frozen=True)
+class Intention:
+    """`<precondition, goal, always, actions>` (seed 000 Definition 6; `always U goal`)."""
+
+    name: str
+    precondition: Expr
+    goal: Expr
+    always: Expr | None = None
+    actions: tuple[Assign, ...] = ()
+    description: str = ""
+
+
+def effect_as_goal(action: Assign, values: Mapping[str, Value]) -> Expr:
+    """`x := v` as `x == v`; `x := y` as `x == <value of y in values>`."""
+    if action.source is None:
+        assert action.value is not None
+        return _equals(action.target, action.value)
+    return _equals(action.target, values[action.source])
+
+
+def _equals(name: str, value: Value) -> Expr:
+    if isinstance(value, bool):
+        return BoolVar(name) if value else Not(BoolVar(name))
+    return Equals(name, value)
+
+
+@dataclass(frozen=True)
+class Station:
+    model: Model
+    name: str = ""
+    resources: tuple[Resource, ...] = ()
+    abilities: tuple[Ability, ...] = ()
+    operations: tuple[Operation, ...] = ()
+    intentions: tuple[Intention, ...] = ()
+    predicates: dict[str, Expr] = field(default_factory=dict)
+    restart_transitions: frozenset[str] = frozenset()
+
+    def operation(self, name: str) -> Operation:
+        return next(o for o in self.operations if o.name == name)
+
+    def intention(self, name: str) -> Intention:
+        return next(i for i in self.intentions if i.name == name)
+
+
+Fields = dict[str, tuple[yaml.Node, yaml.Node]]
+
+
+def load_station(text: str, file: str = "<model>") -> Station:
+    """Parse a model file of either form; a flat model becomes a station with no extras."""
+    reader, top = read_top(text, file, STATION_KEYS)
+    if any(key in top for key in STATION_KEYS):
+        return read_station(reader, top)
+    return Station(read_flat(reader, top))
+
+
+def read_station(reader: Reader, top: Fields) -> Station:
+    name = reader.scalar(top["station"][1], "station name") if "station" in top else ""
+    # 1. variables: station-wide ones, then each resource's (named RESOURCE.NAME)
+    variable_nodes = reader.sequence(top["variables"][1], "variables") if "variables" in top else []
+    variables = list(_each(reader, variable_nodes, lambda n: read_variable(reader, n)))
+    resource_nodes = reader.sequence(top["resources"][1], "resources") if "resources" in top else []
+    resource_fields: list[tuple[str, Fields]] = []
+    for node in resource_nodes:
+        fields = reader.mapping(node, "a resource", _RESOURCE_KEYS, required=("name",))
+        if fields is None or "name" not in fields:
+            continue
+        resource = reader.name(fields["name"][1], "resource name")
+        if resource is None:
+            continue
+        resource_fields.append((resource, fields))
+        nodes = (
+            reader.sequence(fields["variables"][1], "variables") if "variables" in fields else []
+        )
+        variables += [
+            v for n in nodes if (v := read_variable(reader, n, resource + ".")) is not None
+        ]
+    reader.unique([(r, f["name"][1]) for r, f in resource_fields], "resource")
+    reader.unique(
+        [(v.name, _variable_node(variable_nodes, resource_fields, v)) for v in variables],
+        "variable",
+    )
+    by_name = {v.name: v for v in variables}
+    domains = {v.name: v.domain for v in variables}
+
+    # 2. abilities and resource transitions
+    predicates: dict[str, Expr] = {}
+    transitions: list[tuple[Transition, yaml.Node]] = []
+    abilities: list[Ability] = []
+    resources: list[Resource] = []
+    restart: set[str] = set()
+    for resource, fields in resource_fields:
+        prefix = resource + "."
+        aliases = {v.name[len(prefix) :]: v.name for v in variables if v.name.startswith(prefix)}
+        own: list[str] = []
+        ability_names: list[str] = []
+        for node in (
+            reader.sequence(fields["abilities"][1], "abilities") if "abilities" in fields else []
+        ):
+            for ability, compiled in _read_ability(
+                reader, node, resource, domains, aliases, by_name
+            ):
+                abilities.append(ability)
+                ability_names.append(ability.qualified)
+                for predicate, expr in ability.predicates.items():
+                    predicates[f"{ability.qualified}.{predicate}"] = expr
+                for t, t_node in compiled:
+                    if t.name not in {x.name for x, _ in transitions}:
+                        transitions.append((t, t_node))
+                        own.append(t.name)
+                if ability.restart:
+                    restart.update(ability.transitions)
+        scope = scope_for(domains, predicates, aliases)
+        nodes = (
+            reader.sequence(fields["transitions"][1], "transitions")
+            if "transitions" in fields
+            else []
+        )
+        for node in nodes:
+            read = read_transition(reader, node, scope, by_name)
+            if read is not None:
+                prefixed = Transition(
+                    prefix + read.name, read.kind, read.guard, read.actions, read.source
+                )
+                transitions.append((prefixed, node))
+                own.append(prefixed.name)
+        description = fields.get("description")
+        resources.append(
+            Resource(
+                resource,
+                (reader.scalar(description[1], "description") or "") if description else "",
+                tuple(aliases.values()),
+                tuple(ability_names),
+                tuple(own),
+            )
+        )
+
+    # 3. station-wide transitions and specifications (may name ability predicates)
+    scope = scope_for(domains, predicates)
+    nodes = reader.sequence(top["transitions"][1], "transitions") if "transitions" in top else []
+    for node in nodes:
+        station_wide = read_transition(reader, node, scope, by_name)
+        if station_wide is not None:
+            transitions.append((station_wide, node))
+    reader.unique([(t.name, _name_node(n)) for t, n in transitions], "transition")
+    spec_nodes = (
+        reader.sequence(top["specifications"][1], "specifications")
+        if "specifications" in top
+        else []
+    )
+    specifications: list[Specification] = list(
+        _each(reader, spec_nodes, lambda n: read_specification(reader, n, scope))
+    )
+    reader.unique(
+        [(s.name, _node_at(spec_nodes, s.source)) for s in specifications], "specification"
+    )
+
+    # 4. operations, then intentions (which may name operations' predicates)
+    operations: list[Operation] = []
+    named: list[tuple[str, yaml.Node]] = []
+    for node in reader.sequence(top["operations"][1], "operations") if "operations" in top else []:
+        for operation in _read_operation(reader, node, scope, by_name):
+            operations.append(operation)
+            named.append((operation.name, _name_node(node)))
+            predicates[f"{operation.name}.precondition"] = operation.precondition
+            predicates[f"{operation.name}.goal"] = conjunction(
+                [operation.goal, *(_effect_predicate(a) for a in operation.effects)]
+            )
+    reader.unique(named, "operation")
+    scope = scope_for(domains, predicates)
+    intentions: list[Intention] = []
+    for node in reader.sequence(top["intentions"][1], "intentions") if "intentions" in top else []:
+        intention = _read_intention(reader, node, scope, by_name)
+        if intention is not None:
+            intentions.append(intention)
+            predicates[f"{intention.name}.precondition"] = intention.precondition
+            predicates[f"{intention.name}.goal"] = intention.goal
+            if intention.always is not None:
+                predicates[f"{intention.name}.always"] = intention.always
+    reader.raise_if_errors()
+    model = Model(
+        tuple(variables), tuple(t for t, _ in transitions), tuple(specifications), reader.file
+    )
+    return Station(
+        model,
+        name or "",
+        tuple(resources),
+        tuple(abilities),
+        tuple(operations),
+        tuple(intentions),
+        predicates,
+        frozenset(restart),
+    )
+
+
+def _effect_predicate(action: Assign) -> Expr:
+    if action.source is not None:
+        return SameValue(action.target, action.source)
+    assert action.value is not None
+    return _equals(action.target, action.value)
+
+
+def _name_node(node: yaml.Node) -> yaml.Node:
+    if isinstance(node, yaml.MappingNode):
+        for key, value in node.value:
+            if key.value == "name":
+                return value  # type: ignore[no-any-return]
+    return node
+
+
+def _variable_node(
+    station_nodes: list[yaml.Node], resources: list[tuple[str, Fields]], variable: Variable
+) -> yaml.Node:
+    nodes = list(station_nodes)
+    for _, fields in resources:
+        if "variables" in fields and isinstance(fields["variables"][1], yaml.SequenceNode):
+            nodes += fields["variables"][1].value
+    return _node_at(nodes, variable.source)
+
+
+def _parameter(reader: Reader, fields: Fields, what: str) -> tuple[str, list[str]] | None:
+    """`parameter: {name: p, values: [...]}` → ("p", values); None when absent or broken."""
+    if "parameter" not in fields:
+        return None
+    node = fields["parameter"][1]
+    parameter = reader.mapping(
+        node, f"the parameter of {what}", ("name", "values"), ("name", "values")
+    )
+    if parameter is None or "name" not in parameter or "values" not in parameter:
+        return None
+    name = reader.name(parameter["name"][1], "parameter name")
+    values = [
+        reader.scalar(v, "parameter value")
+        for v in reader.sequence(parameter["values"][1], "values")
+    ]
+    if name is None or not values or any(v is None for v in values):
+        if not values:
+            reader.error(parameter["values"][1], "a parameter needs at least one value")
+        return None
+    return name, [v for v in values if v is not None]
+
+
+def _read_ability(
+    reader: Reader,
+    node: yaml.Node,
+    resource: str,
+    domains: dict[str, tuple[Value, ...]],
+    aliases: dict[str, str],
+    variables: dict[str, Variable],
+) -> list[tuple[Ability, list[tuple[Transition, yaml.Node]]]]:
+    """One ability per parameter value, each with its predicates and named transitions."""
+    fields = reader.mapping(node, "an ability", _ABILITY_KEYS, required=("name",))
+    if fields is None or "name" not in fields:
+        return []
+    template = reader.name(fields["name"][1], "ability name")
+    if template is None:
+        return []
+    parameter = _parameter(reader, fields, f"ability '{template}'")
+    instances: list[tuple[str, str | None, dict[str, str]]] = (
+        [(f"{template}_{v}", v, {parameter[0]: v}) for v in parameter[1]]
+        if parameter
+        else [(template, None, {})]
+    )
+    restart = False
+    if "restart" in fields:
+        restart = (reader.scalar(fields["restart"][1], "restart") or "").lower() == "true"
+    predicate_nodes = _pairs(reader, fields.get("predicates"), f"ability '{template}'")
+    transition_nodes = (
+        reader.sequence(fields["transitions"][1], "transitions") if "transitions" in fields else []
+    )
+    extra_nodes = dict(_pairs(reader, fields.get("instances"), f"ability '{template}'"))
+    for extra_value, extra_node in extra_nodes.items():
+        if all(extra_value != v for _, v, _ in instances):
+            reader.error(
+                extra_node, f"'{extra_value}' is not a value of the parameter of '{template}'"
+            )
+
+    per_instance: list[list[tuple[Transition, yaml.Node]]] = []
+    instance_predicates: list[dict[str, Expr]] = []
+    for instance, value, values in instances:
+        # messages name the template, so that one mistake is reported once, not per value
+        where = f"ability '{resource}.{template}'"
+        local: dict[str, Expr] = {}
+        for key, value_node in predicate_nodes:
+            scope = scope_for(domains, local, aliases)
+            expr = reader.expression(value_node, scope, f"predicate '{key}' of {where}", values)
+            local[key] = expr if expr is not None else TRUE  # reported; avoid follow-on errors
+        scope = scope_for(domains, local, aliases)
+        transitions: list[tuple[Transition, yaml.Node]] = []
+        for t_node in transition_nodes:
+            t = read_transition(reader, t_node, scope, variables, values, f"{resource}.{template}.")
+            if t is None:
+                continue
+            if t.name == "start" and value in extra_nodes:
+                t = _with_extras(reader, t, extra_nodes[value], scope, variables, values, where)
+            transitions.append((t, t_node))
+        instance_predicates.append(local)
+        per_instance.append(transitions)
+
+    # a transition that comes out the same for every value is emitted once (a generic effect)
+    generic: set[str] = set()
+    if (
+        len(instances) > 1
+        and per_instance
+        and all(len(ts) == len(per_instance[0]) for ts in per_instance)
+    ):
+        for i, (first, _) in enumerate(per_instance[0]):
+            same = {(ts[i][0].kind, ts[i][0].guard, ts[i][0].actions) for ts in per_instance}
+            if first.name != "start" and len(same) == 1:
+                generic.add(first.name)
+
+    compiled: list[tuple[Ability, list[tuple[Transition, yaml.Node]]]] = []
+    for k, (instance, value, _values) in enumerate(instances):
+        result: list[tuple[Transition, yaml.Node]] = []
+        for t, t_node in per_instance[k]:
+            if t.name == "start":
+                full = f"{resource}.{instance}"
+            elif t.name in generic:
+                full = f"{resource}.{template}.{t.name}"
+            else:
+                full = f"{resource}.{instance}.{t.name}"
+            result.append((Transition(full, t.kind, t.guard, t.actions, t.source), t_node))
+        ability = Ability(
+            resource,
+            instance,
+            template,
+            value,
+            instance_predicates[k],
+            tuple(t.name for t, _ in result),
+            restart,
+        )
+        compiled.append((ability, result))
+    return compiled
+
+
+def _pairs(
+    reader: Reader, entry: tuple[yaml.Node, yaml.Node] | None, what: str
+) -> list[tuple[str, yaml.Node]]:
+    """The keys and value nodes of a mapping whose keys are free names."""
+    if entry is None:
+        return []
+    node = entry[1]
+    if not isinstance(node, yaml.MappingNode):
+        reader.error(node, f"the {entry[0].value} of {what} must be a mapping")
+        return []
+    pairs: list[tuple[str, yaml.Node]] = []
+    for key_node, value_node in node.value:
+        key = reader.name(key_node, "name")
+        if key is not None:
+            if any(key == k for k, _ in pairs):
+                reader.error(key_node, f"duplicate key '{key}' in the {entry[0].value} of {what}")
+            pairs.append((key, value_node))
+    return pairs
+
+
+def _with_extras(
+    reader: Reader,
+    start: Transition,
+    node: yaml.Node,
+    scope: Scope,
+    variables: dict[str, Variable],
+    values: dict[str, str],
+    where: str,
+) -> Transition:
+    """The `start` transition with an instance's extra guard and actions (seed 003 Table V)."""
+    fields = reader.mapping(node, f"the instance extras of {where}", _INSTANCE_KEYS)
+    if fields is None:
+        return start
+    guard = start.guard
+    if "guard" in fields:
+        extra = reader.expression(fields["guard"][1], scope, f"the extra guard of {where}", values)
+        guard = conjunction([guard, extra]) if extra is not None else guard
+    actions = read_actions(
+        reader, fields.get("actions"), scope, where, start.kind, variables, values
+    )
+    return Transition(start.name, start.kind, guard, start.actions + (actions or ()), start.source)
+
+
+def _names_and_values(
+    reader: Reader, fields: Fields, what: str
+) -> list[tuple[str, dict[str, str]]] | None:
+    """Instance names and placeholder values for a possibly parameterised operation."""
+    text = reader.scalar(fields["name"][1], f"{what} name")
+    if text is None:
+        return None
+    parameter = _parameter(reader, fields, f"{what} '{text}'")
+    if parameter is None:
+        return [(text, {})] if reader.name(fields["name"][1], f"{what} name") else None
+    key, values = parameter
+    result = []
+    for value in values:
+        name = substitute(text, {key: value})[0] if "{" + key + "}" in text else f"{text}_{value}"
+        if not is_name(name):
+            reader.error(fields["name"][1], f"{what} name '{name}' is not a name")
+            return None
+        result.append((name, {key: value}))
+    return result
+
+
+def _read_operation(
+    reader: Reader, node: yaml.Node, scope: Scope, variables: dict[str, Variable]
+) -> list[Operation]:
+    fields = reader.mapping(node, "an operation", _OPERATION_KEYS, required=("name",))
+    if fields is None or "name" not in fields:
+        return []
+    instances = _names_and_values(reader, fields, "operation")
+    if instances is None:
+        return []
+    description = _description(reader, fields)
+    result = []
+    for name, values in instances:
+        where = f"operation '{name}'"
+        pre = _optional_expr(reader, fields, "precondition", scope, where, values)
+        goal = _optional_expr(reader, fields, "goal", scope, where, values)
+        effects = read_actions(
+            reader, fields.get("effects"), scope, where, TransitionKind.EFFECT, variables, values
+        )
+        actions = read_actions(
+            reader, fields.get("actions"), scope, where, TransitionKind.EFFECT, variables, values
+        )
+        if pre is None or goal is None or effects is None or actions is None:
+            continue
+        result.append(Operation(name, pre, effects, goal, actions, description))
+    return result
+
+
+def _read_intention(
+    reader: Reader, node: yaml.Node, scope: Scope, variables: dict[str, Variable]
+) -> Intention | None:
+    fields = reader.mapping(node, "an intention", _INTENTION_KEYS, required=("name", "goal"))
+    if fields is None or "name" not in fields or "goal" not in fields:
+        return None
+    name = reader.name(fields["name"][1], "intention name")
+    where = f"intention '{name}'"
+    pre = _optional_expr(reader, fields, "precondition", scope, where, {})
+    goal = _optional_expr(reader, fields, "goal", scope, where, {})
+    always = (
+        _optional_expr(reader, fields, "always", scope, where, {}) if "always" in fields else None
+    )
+    actions = read_actions(
+        reader, fields.get("actions"), scope, where, TransitionKind.EFFECT, variables
+    )
+    if name is None or pre is None or goal is None or actions is None:
+        return None
+    if "always" in fields and always is None:
+        return None
+    return Intention(name, pre, goal, always, actions, _description(reader, fields))
+
+
+def _optional_expr(
+    reader: Reader, fields: Fields, key: str, scope: Scope, where: str, values: dict[str, str]
+) -> Expr | None:
+    if key not in fields:
+        return TRUE
+    return reader.expression(fields[key][1], scope, f"the {key} of {where}", values)
+
+
+def _description(reader: Reader, fields: Fields) -> str:
+    if "description" not in fields:
+        return ""
+    return reader.scalar(fields["description"][1], "description") or ""
