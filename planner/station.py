@@ -386,7 +386,7 @@ def _read_ability(
 
     per_instance: list[list[tuple[Transition, yaml.Node]]] = []
     instance_predicates: list[dict[str, Expr]] = []
-    for instance, value, values in instances:
+    for _instance, value, values in instances:
         # messages name the template, so that one mistake is reported once, not per value
         where = f"ability '{resource}.{template}'"
         local: dict[str, Expr] = {}
