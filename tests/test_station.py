@@ -6,10 +6,12 @@ from pathlib import Path
 
 import pytest
 
-from planner.expressions import Equals, format_expr
+from planner.expressions import Equals, format_expr, variables_of
 from planner.loading import ModelError
 from planner.model import TransitionKind
-from planner.planning import PlanQuery
+from planner.operation_planner import OperationPlanner
+from planner.partial_order import independent_operations
+from planner.planning import PlanQuery, PlanStatus
 from planner.semantics import Semantics
 from planner.station import Station, load_station
 from planner.transition_planner import TransitionPlanner
@@ -54,7 +56,7 @@ def test_standard_predicates_are_named_globally(station: Station) -> None:
 
 
 def test_operations_and_intentions(station: Station) -> None:
-    (operation,) = station.operations
+    operation = station.operation("tighten_bp1")
     assert operation.name == "tighten_bp1"
     assert operation.precondition == Equals("bp1.state", "placed")
     values = dict(station.model.initial_values())
@@ -122,6 +124,30 @@ def test_unknown_predicate_in_a_goal_suggests_the_right_one() -> None:
         'goal: "bp1.state == tightened && r1.pos == home"', 'goal: "tighten_bp1.gaol"'
     )
     assert "unknown variable 'tighten_bp1.gaol' (did you mean 'tighten_bp1.goal'?)" in message
+
+
+def test_the_operation_planner_sequences_operations_for_the_intentions(
+    station: Station,
+) -> None:
+    planner = OperationPlanner(station)
+    assert [t.name for t in planner.model.transitions] == ["place_bp1", "tighten_bp1"]
+    assert [v.name for v in planner.model.variables] == ["bp1.state", "r1.pos"]
+    values = station.model.initial_values()
+    query = planner.query(values, [station.intention("assemble")])
+    for engine in ("bdd", "sat"):
+        result = planner.plan(query, engine)
+        assert [o.name for o in planner.operations(result)] == ["place_bp1", "tighten_bp1"]
+    # an operation in error is planned around; here nothing else places bolts
+    blocked = planner.query(values, [station.intention("assemble")], disabled=["place_bp1"])
+    assert planner.plan(blocked).status is PlanStatus.UNREACHABLE
+    uses = {
+        o.name: variables_of(o.precondition) | {a.target for a in o.effects}
+        for o in station.operations
+    }
+    assert independent_operations(uses, ["place_bp1", "tighten_bp1"]) == [
+        frozenset(),
+        frozenset({0}),
+    ]
 
 
 def test_duplicate_operation_names() -> None:

@@ -1,0 +1,139 @@
+"""Steps the partial order declares independent really commute (replayed in other orders)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+import yaml
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from bench import family
+from planner.expressions import parse_expr
+from planner.loading import load_model, scope_for
+from planner.partial_order import Block, blocks, independent_operations
+from planner.planning import PlanQuery
+from planner.semantics import Semantics
+from planner.transition_planner import TransitionPlanner
+
+try:
+    from tests import oracle as O
+    from tests.strategies import flat_models, queries
+except ImportError:  # pragma: no cover
+    import oracle as O  # type: ignore[no-redef]
+    from strategies import flat_models, queries  # type: ignore[no-redef]
+
+
+@settings(
+    max_examples=600,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+)
+@given(data=st.data())
+def test_any_order_the_partial_order_allows_is_legal_and_ends_the_same(
+    data: st.DataObject,
+) -> None:
+    model_dict: dict[str, Any] = data.draw(flat_models(max_vars=5, max_transitions=8))
+    oracle_model = O.parse_model(model_dict)
+    if O.has_automatic_cycle(oracle_model):
+        return
+    model = load_model(yaml.safe_dump(model_dict, sort_keys=False), "random.yaml")
+    planner = TransitionPlanner(model)
+    q = data.draw(queries(model_dict))
+    start = tuple(q["start"][v.name] for v in model.variables)
+    goal = parse_expr(q["goal"], scope_for(model.domains))
+    result = planner.plan(PlanQuery(start, goal, max_steps=10, maintenance=q["maintenance"]))
+    if not result.found or result.length < 2:
+        return
+    order = blocks(model, result.plan, {g.transition: g.guard for g in planner.guards})
+    assert [s for b in order for s in b.steps] == list(result.plan)
+    # draw a topological order of the blocks: any block whose dependencies are done
+    done: list[int] = []
+    remaining = list(range(len(order)))
+    while remaining:
+        ready = [k for k in remaining if order[k].after <= set(done)]
+        chosen = data.draw(st.sampled_from(ready))
+        done.append(chosen)
+        remaining.remove(chosen)
+    reordered = [s for k in done for s in order[k].steps]
+    problem = O.replay(oracle_model, start, reordered, q["goal"], maintenance=q["maintenance"])
+    assert problem is None, (done, problem)
+
+
+def _replay(planner: TransitionPlanner, start: tuple[object, ...], steps: list[str]) -> str | None:
+    """Why `steps` is not a legal plan from `start` (section 8), or None."""
+    semantics = Semantics(planner.model)
+    state = start
+    for i, name in enumerate(steps):
+        problem = semantics.step_allowed(state, name)  # type: ignore[arg-type]
+        if problem is not None:
+            return f"step {i} ({name}): {problem}"
+        state = semantics.by_name[name].apply(state)  # type: ignore[arg-type]
+        if planner.sym.contains(planner.bad, state):  # type: ignore[arg-type]
+            return f"step {i} ({name}) enters a bad state"
+    return None
+
+
+@pytest.fixture(scope="module")
+def bolt_station() -> tuple[TransitionPlanner, PlanQuery, list[Block]]:
+    model_dict = family.station(bolt_pairs=3, robots=2)
+    model = load_model(yaml.safe_dump(model_dict, sort_keys=False), "family.yaml")
+    planner = TransitionPlanner(model)
+    goal = parse_expr(family.goal(3), scope_for(model.domains))
+    query = PlanQuery(tuple(model.initial_values().values()), goal)
+    result = planner.plan(query)
+    assert result.found and result.length == 27
+    return (
+        planner,
+        query,
+        blocks(model, result.plan, {g.transition: g.guard for g in planner.guards}),
+    )
+
+
+def test_the_operator_places_bolts_in_parallel_with_the_robot(
+    bolt_station: tuple[TransitionPlanner, PlanQuery, list[Block]],
+) -> None:
+    _, _, order = bolt_station
+    places = [k for k, b in enumerate(order) if b.transition.startswith("operator.place_")]
+    assert len(places) == 3
+    for k in places:  # placing a bolt waits for nothing the robot does
+        assert not any(order[j].transition.startswith("r1.") for j in order[k].after)
+
+
+@settings(max_examples=40, deadline=None)
+@given(data=st.data())
+def test_reordered_station_plans_stay_legal(
+    bolt_station: tuple[TransitionPlanner, PlanQuery, list[Block]], data: st.DataObject
+) -> None:
+    planner, query, order = bolt_station
+    done: list[int] = []
+    remaining = list(range(len(order)))
+    while remaining:
+        ready = [k for k in remaining if order[k].after <= set(done)]
+        chosen = data.draw(st.sampled_from(ready))
+        done.append(chosen)
+        remaining.remove(chosen)
+    steps = [s for k in done for s in order[k].steps]
+    assert _replay(planner, query.start, steps) is None
+    final = Semantics(planner.model)
+    state = query.start
+    for name in steps:
+        state = final.by_name[name].apply(state)  # type: ignore[arg-type]
+    assert planner.sym.contains(planner.sym.expr(query.goal), state)  # type: ignore[arg-type]
+
+
+def test_operations_with_disjoint_variables_are_independent() -> None:
+    uses = {
+        "place_bp1": frozenset({"bp1"}),
+        "place_bp2": frozenset({"bp2"}),
+        "tighten_bp1": frozenset({"bp1", "nr"}),
+        "tighten_bp2": frozenset({"bp2", "nr"}),
+    }
+    plan = ["place_bp1", "place_bp2", "tighten_bp1", "tighten_bp2"]
+    assert independent_operations(uses, plan) == [
+        frozenset(),
+        frozenset(),
+        frozenset({0}),
+        frozenset({1, 2}),
+    ]
