@@ -211,7 +211,10 @@ def _check(args: argparse.Namespace) -> int:
     by_kind = ", ".join(f"{n} {k}" for k, n in report["transitions_by_kind"].items())
     print(f"transitions: {report['transitions']} ({by_kind})")
     print(f"specifications: {report['specifications']}")
-    print(f"states: {report['states']}, bad: {report['bad_states']}")
+    print(
+        f"states: {report['states']}, bad: {report['bad_states']}, "
+        f"reachable from the initial state: {report['reachable_states']}"
+    )
     guards = report["supervisor_guards"]
     print(f"supervisor guards added: {len(guards)}")
     for guard in guards:
@@ -234,6 +237,7 @@ def _size_report(model: Model, planner: Any) -> dict[str, Any]:
         "specifications": len(model.specifications),
         "states": sym.count(sym.true),
         "bad_states": sym.count(planner.bad),
+        "reachable_states": sym.count(planner.reachable(tuple(model.initial_values().values()))),
         "supervisor_guards": [
             {
                 "transition": g.transition,

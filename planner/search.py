@@ -75,6 +75,21 @@ class SymbolicSearch:
             statistics={"layers": len(layers), "reached": sym.count(reached)},
         )
 
+    def reachable(self, start: State, *, maintenance: bool = False) -> Function:
+        """Every state plans can visit from `start`: forward closure within the good states."""
+        sym = self.sym
+        usable = [
+            t for t in sym.transitions if maintenance or t.kind is not TransitionKind.MAINTENANCE
+        ]
+        automatic = automatic_guard(sym)
+        reached = sym.state(start) & ~self.bad
+        frontier = reached
+        while frontier != sym.false:
+            source = cudd.restrict(frontier, frontier | ~reached)
+            frontier = self._image(source, usable, automatic) & ~self.bad & ~reached
+            reached |= frontier
+        return reached
+
     def _image(
         self, states: Function, usable: list[SymbolicTransition], automatic: Function
     ) -> Function:

@@ -12,10 +12,10 @@ from functools import cached_property
 from planner.expressions import variables_of
 from planner.loading import Diagnostic, ModelError
 from planner.model import Model, SourceLocation
-from planner.planning import PlanQuery, PlanResult, PlanStatus
+from planner.planning import PlanQuery, PlanResult, PlanStatus, State
 from planner.search import SymbolicSearch
 from planner.semantics import compile_expr
-from planner.symbolic import SymbolicModel
+from planner.symbolic import Function, SymbolicModel
 from planner.synthesis import (
     SupervisorGuard,
     automatic_cycle,
@@ -101,6 +101,10 @@ class TransitionPlanner:
                 engine=result.engine,
             )
         return result
+
+    def reachable(self, start: State, *, maintenance: bool = False) -> Function:
+        """The good states plans can reach from `start` (for sizes and benchmarks)."""
+        return self._search.reachable(start, maintenance=maintenance)
 
     def violated(self, query: PlanQuery) -> list[str]:
         """Why a start state is bad: the specifications it is bad for, then forbidden[i]."""

@@ -91,14 +91,36 @@ def bolt_station() -> tuple[TransitionPlanner, PlanQuery, list[Block]]:
     )
 
 
-def test_the_operator_places_bolts_in_parallel_with_the_robot(
-    bolt_station: tuple[TransitionPlanner, PlanQuery, list[Block]],
-) -> None:
-    _, _, order = bolt_station
-    places = [k for k, b in enumerate(order) if b.transition.startswith("operator.place_")]
-    assert len(places) == 3
-    for k in places:  # placing a bolt waits for nothing the robot does
-        assert not any(order[j].transition.startswith("r1.") for j in order[k].after)
+PARALLEL = """
+variables:
+  - {name: r1.ref, domain: [home, bp1], kind: command}
+  - {name: r1.pos, domain: [home, bp1], kind: measured}
+  - {name: bin.state, domain: [empty, filled], kind: estimated}
+  - {name: lamp.on, domain: bool, kind: command}
+transitions:
+  - {name: r1.goto_bp1, guard: "r1.pos == r1.ref && r1.ref == home", actions: ["r1.ref := bp1"]}
+  - {name: r1.arrive, kind: effect, guard: "r1.pos != r1.ref", actions: ["r1.pos := r1.ref"]}
+  - {name: operator.fill_bin, guard: "bin.state == empty", actions: ["bin.state := filled"]}
+  - {name: lamp.switch_on, guard: "!lamp.on && bin.state == filled", actions: ["lamp.on := true"]}
+specifications:
+  - {name: lamp_only_at_bp1, invariant: "lamp.on -> r1.pos == bp1"}
+"""
+
+
+def test_steps_of_unrelated_resources_may_start_in_parallel() -> None:
+    model = load_model(PARALLEL, "parallel.yaml")
+    planner = TransitionPlanner(model)
+    goal = parse_expr("r1.pos == bp1 && lamp.on", scope_for(model.domains))
+    result = planner.plan(PlanQuery(tuple(model.initial_values().values()), goal))
+    assert result.length == 4
+    order = {b.transition: b for b in blocks(model, result.plan)}
+    index = {b.transition: k for k, b in enumerate(blocks(model, result.plan))}
+    # the robot's move and the operator's work share nothing; the lamp waits for the bin
+    assert index["r1.goto_bp1"] not in order["operator.fill_bin"].after
+    assert index["operator.fill_bin"] not in order["r1.goto_bp1"].after
+    assert index["operator.fill_bin"] in order["lamp.switch_on"].after
+    # the specification lets the lamp on only once the robot is at bp1
+    assert index["r1.goto_bp1"] in order["lamp.switch_on"].after
 
 
 @settings(max_examples=40, deadline=None)
