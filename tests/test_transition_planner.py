@@ -24,7 +24,7 @@ except ImportError:  # pragma: no cover - run from inside tests/
     from strategies import flat_models, queries, query_extensions  # type: ignore[no-redef]
 
 SETTINGS = settings(
-    max_examples=120,
+    max_examples=200,
     deadline=None,
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
 )
@@ -58,7 +58,7 @@ def _query(model: Model, q: dict[str, Any], ext: dict[str, Any]) -> PlanQuery:
     )
 
 
-@SETTINGS
+@settings(SETTINGS, max_examples=300)
 @given(data=st.data())
 def test_plans_are_minimal_legal_and_agree_with_the_oracle(data: st.DataObject) -> None:
     model_dict = data.draw(flat_models())

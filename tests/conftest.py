@@ -1,0 +1,12 @@
+"""Test configuration: hypothesis explores randomly on developers' machines, and replays a
+fixed sequence of examples in CI so that main cannot turn red without a change."""
+
+from __future__ import annotations
+
+import os
+
+from hypothesis import settings
+
+settings.register_profile("ci", derandomize=True, database=None, print_blob=True)
+if os.environ.get("CI"):
+    settings.load_profile("ci")
