@@ -7,15 +7,19 @@ optimal plan lengths can be cross-checked against Fast Downward (A* + LM-cut):
 * a non-automatic action additionally requires that no automatic guard holds (priority);
 * controlled/maintenance actions additionally require their supervisor guard.
 
-Finite-domain variables use the ``typed`` encoding by default: one unary predicate per variable
-over a PDDL type whose objects are the domain values, and an ``?old`` parameter that deletes the
-current value.  Fast Downward's invariant synthesis turns each such predicate back into one
-multi-valued variable.  The alternative ``onehot`` encoding (one 0-ary fluent per value, deleting
-all other values) is kept for comparison; see ``ENCODINGS``.
+Each step is one action; in Fast Downward's translator every delete effect must be matched by
+a precondition, else, once it has found the variable's mutex group, it emits a conditional
+effect, which LM-cut rejects ("unsupported").  So actions are split on the old value of each
+assigned variable whose value the guard does not fix (booleans only when set to false), and
+likewise on the value of ``y`` for each copy ``x := y`` (conditional effects are out, too).
+Split actions are named ``transition[y=v,...]``; :func:`transition_of` maps them back.  UP's
+own effects do read the pre-state, but its PDDL writer refuses non-constant boolean assignments.
 
-Copies ``x := y`` are grounded here (one action per value of ``y``) instead of using conditional
-effects, because the optimal Fast Downward engine (LM-cut) does not support conditional effects.
-Each such action is named ``transition[y=value]``; :func:`transition_of` maps it back.
+Two encodings of finite-domain variables (``ENCODINGS``): ``onehot`` (default), one 0-ary fluent
+per (variable, value), split as above; ``typed``, a unary predicate per variable over a type of
+its values, with an ``?old`` parameter that Fast Downward grounds.  Both translate to the same
+SAS+ task (same variables, operators and expansions on the station benchmarks); onehot gives
+plain propositional PDDL, typed a ~2x smaller file.
 
 Also provided, independent of Unified Planning: :func:`simulate` (checks a plan step by step) and
 :func:`bfs_min_length` (brute-force optimal length for small models), used as test oracles.
@@ -28,7 +32,7 @@ import re
 from collections import OrderedDict, deque
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Union
+from typing import Any
 
 import unified_planning.model as upm
 from unified_planning.io import PDDLWriter
@@ -39,7 +43,7 @@ from unified_planning.shortcuts import (
     BoolType,
     Fluent,
     InstantaneousAction,
-    MinimizeSequentialPlanLength,
+    MinimizeActionCosts,
     Not,
     Object,
     Or,
@@ -47,11 +51,12 @@ from unified_planning.shortcuts import (
     UserType,
 )
 
-Value = Union[str, bool]
+Value = str | bool
 State = dict[str, Value]
-ENCODINGS = ("typed", "onehot")
+ENCODINGS = ("onehot", "typed")
 KINDS = ("controlled", "automatic", "effect", "maintenance")
 SUPERVISED_KINDS = ("controlled", "maintenance")
+CHECK_PREFIX = "$check"  # bookkeeping actions; "$" cannot occur in a model name
 
 
 class ModelError(ValueError):
@@ -101,7 +106,7 @@ class OrE:
     args: tuple[Expr, ...]
 
 
-Expr = Union[Const, Lit, VarEq, NotE, AndE, OrE]
+Expr = Const | Lit | VarEq | NotE | AndE | OrE
 T, F = Const(True), Const(False)
 
 
@@ -137,9 +142,9 @@ class FlatModel:
     specs: dict[str, Expr] = field(default_factory=dict)
 
     @classmethod
-    def from_dict(cls, model: Mapping[str, object]) -> FlatModel:
+    def from_dict(cls, model: Mapping[str, Any]) -> FlatModel:
         m = cls({}, {}, {})
-        for v in model.get("variables") or []:  # type: ignore[union-attr]
+        for v in model.get("variables") or []:
             name, dom = str(v["name"]), v.get("domain")
             if dom == "bool":
                 domain: tuple[Value, ...] = (False, True)
@@ -154,7 +159,7 @@ class FlatModel:
             var = Variable(name, domain, None)
             init = v.get("initial")
             m.variables[name] = Variable(name, domain, None if init is None else m.value(var, init))
-        for t in model.get("transitions") or []:  # type: ignore[union-attr]
+        for t in model.get("transitions") or []:
             name, kind = str(t["name"]), str(t.get("kind", "controlled"))
             if kind not in KINDS:
                 raise ModelError(f"{name}: unknown kind {kind}")
@@ -164,7 +169,7 @@ class FlatModel:
             if len({a[0] for a in acts}) != len(acts):
                 raise ModelError(f"{name}: a variable is assigned twice")
             m.transitions[name] = Transition(name, kind, m.parse(str(t.get("guard", "true"))), acts)
-        for s in model.get("specifications") or []:  # type: ignore[union-attr]
+        for s in model.get("specifications") or []:
             m.specs[str(s["name"])] = m.parse(str(s["invariant"]))
         return m
 
@@ -410,8 +415,23 @@ def facts(e: Expr) -> tuple[dict[str, Value], dict[str, frozenset[Value]]]:
     return known, excluded
 
 
-def transition_of(action_name: str) -> str:
-    """Transition name of an exported action (strips the ``[y=v]`` copy-grounding suffix)."""
+def variables(e: Expr) -> set[str]:
+    if isinstance(e, Lit):
+        return {e.var}
+    if isinstance(e, VarEq):
+        return {e.left, e.right}
+    if isinstance(e, NotE):
+        return variables(e.arg)
+    if isinstance(e, (AndE, OrE)):
+        return set().union(*(variables(a) for a in e.args))
+    return set()
+
+
+def transition_of(action_name: str) -> str | None:
+    """Transition name of an exported action (strips the ``[y=v]`` copy-grounding suffix);
+    None for the zero-cost bookkeeping actions, which are not steps."""
+    if action_name.startswith(CHECK_PREFIX):
+        return None
     return action_name.split("[", 1)[0]
 
 
@@ -455,7 +475,7 @@ def _steps(
 
 
 def simulate(
-    model: Mapping[str, object] | FlatModel,
+    model: Mapping[str, Any] | FlatModel,
     start: Mapping[str, object] | None,
     plan: Sequence[str],
     goal: str | None = None,
@@ -466,7 +486,7 @@ def simulate(
     """Replay ``plan`` (transition names) and return the visited states.
 
     Raises :class:`PlanError` if a step is not possible (guard, automatic priority, maintenance,
-    supervisor guard), a bad state is visited (``check_specs``) or the goal does not hold at the end.
+    supervisor guard), a bad state is visited (``check_specs``) or the goal fails at the end.
     """
     m = model if isinstance(model, FlatModel) else FlatModel.from_dict(model)
     sup = _supervisor_exprs(m, supervisor_guards)
@@ -475,7 +495,7 @@ def simulate(
     if check_specs and m.is_bad(s):
         raise PlanError("start state is bad")
     for i, name in enumerate(plan):
-        t = m.transitions.get(transition_of(name))
+        t = m.transitions.get(transition_of(name) or "")
         if t is None:
             raise PlanError(f"step {i}: unknown transition {name}")
         if t not in _steps(m, s, sup, maintenance):
@@ -489,8 +509,24 @@ def simulate(
     return states
 
 
+def check_plan(
+    model: Mapping[str, Any] | FlatModel,
+    start: Mapping[str, object] | None,
+    goal: str,
+    plan: Sequence[str],
+    supervisor_guards: Mapping[str, str] | None = None,
+    maintenance: bool = False,
+    expected_length: int | None = None,
+) -> None:
+    """Raise :class:`PlanError` unless ``plan`` is valid (see :func:`simulate`), reaches ``goal``
+    and, if given, has ``expected_length`` steps."""
+    simulate(model, start, plan, goal, supervisor_guards, maintenance)
+    if expected_length is not None and len(plan) != expected_length:
+        raise PlanError(f"plan has {len(plan)} steps, expected {expected_length}: {plan}")
+
+
 def bfs_min_length(
-    model: Mapping[str, object] | FlatModel,
+    model: Mapping[str, Any] | FlatModel,
     start: Mapping[str, object] | None,
     goal: str,
     supervisor_guards: Mapping[str, str] | None = None,
@@ -556,7 +592,10 @@ class _Encoder:
                 key = frozenset(var.domain)
                 for v in var.domain:
                     if (key, v) not in self.objs:
-                        unique = values_in_types[v] == 1 and not m.variables.get(str(v))
+                        unique = values_in_types[v] == 1 and str(v) not in {
+                            *m.variables,
+                            *m.transitions,
+                        }
                         name = str(v) if unique else f"{v}_{self.types[key].name}"
                         self.objs[key, v] = obj = Object(name, self.types[key])
                         problem.add_object(obj)
@@ -566,6 +605,12 @@ class _Encoder:
                 for v in var.domain:
                     self.val_fl[var.name, v] = fl = Fluent(f"{var.name}={v}", BoolType())
                     problem.add_fluent(fl, default_initial_value=False)
+
+    def add_flag(self, name: str, initial: bool) -> str:
+        """A bookkeeping boolean fluent (not a model variable); returns its name."""
+        self.bool_fl[name] = fl = Fluent(name, BoolType())
+        self.problem.add_fluent(fl, default_initial_value=initial)
+        return name
 
     def atom(self, var: str, value: Value) -> upm.FNode:
         """UP expression for ``var == value``."""
@@ -600,6 +645,21 @@ class _Encoder:
             else:
                 self.problem.set_initial_value(self.atom(name, value), True)
 
+    def pinned(self, t: Transition, known: Mapping[str, Value]) -> list[str]:
+        """Assigned variables whose unknown old value the action must be split on, so that every
+        delete effect is matched by a precondition (else Fast Downward, having found the
+        variable's mutex group, emits a conditional effect, which LM-cut rejects): booleans set to
+        false, and in the onehot encoding every finite-domain variable (typed uses ``?old``)."""
+        return [
+            x
+            for x, v, copy in t.actions
+            if x not in known
+            and (
+                (x in self.bool_fl and (copy or v is False))
+                or (x not in self.bool_fl and self.encoding == "onehot")
+            )
+        ]
+
     def old_params(self, targets: Iterable[str], known: Mapping[str, Value]) -> dict[str, upm.Type]:
         """Typed encoding: an ``?old`` parameter per assigned variable whose value is unknown."""
         if self.encoding != "typed":
@@ -613,86 +673,124 @@ class _Encoder:
     def add_effects(
         self, a: InstantaneousAction, new: Mapping[str, Value], known: Mapping[str, Value]
     ) -> None:
-        """``target := value`` for each item, deleting the old value (see module docstring)."""
+        """``target := value`` for each item; deletes only the (known or ``?old``) old value."""
         for i, (target, value) in enumerate(new.items()):
-            var = self.m.variables[target]
-            if var.is_bool:
+            old = known.get(target)
+            if old == value:
+                continue
+            if target in self.bool_fl:
                 a.add_effect(self.bool_fl[target](), bool(value))
                 continue
-            old = known.get(target)
             if old is not None:
-                if old != value:
-                    a.add_effect(self.atom(target, old), False)
-            elif self.encoding == "typed":
+                a.add_effect(self.atom(target, old), False)
+            else:  # typed: FD grounds ?old (precondition and delete)
                 p = a.parameter(f"old_{i}")
                 a.add_precondition(self.var_fl[target](p))
                 a.add_effect(self.var_fl[target](p), False)
-            else:
-                for v in var.domain:
-                    if v != value:
-                        a.add_effect(self.atom(target, v), False)
             a.add_effect(self.atom(target, value), True)
 
 
+@dataclass(frozen=True)
+class _Lazy:
+    """A condition tracked by a fluent that is true only when the condition is known to hold."""
+
+    flag: str
+    cond: Expr
+    is_spec: bool
+
+
 def to_up_problem(
-    model: Mapping[str, object] | FlatModel,
+    model: Mapping[str, Any] | FlatModel,
     start: Mapping[str, object] | None,
     goal: str,
     supervisor_guards: Mapping[str, str] | None = None,
     maintenance: bool = False,
     *,
-    encoding: str = "typed",
+    encoding: str = "onehot",
     enforce_specifications: bool = False,
 ) -> Problem:
-    """Build the unit-cost UP problem whose optimal plans are the model's minimal plans.
+    """Build the UP problem whose minimal-cost plans are the model's minimal plans.
 
     ``supervisor_guards`` maps controlled/maintenance transition names to guard expressions.
-    With ``enforce_specifications`` every action additionally requires that its successor state
-    satisfies all invariants (regressed through the action's constant effects); this needs no
-    supervisor guards and is a cross-check of them.  A bad start state yields an unsolvable
-    problem (goal ``false``).
+    With ``enforce_specifications`` bad states are excluded directly instead (no supervisor
+    guards needed, so this cross-checks them); with neither, invariants are ignored.  A bad start
+    state gives an unsolvable problem.
+
+    Conjunctions of negations over many transitions' guards or invariants (automatic priority,
+    invariants regressed through an action) are multiplied out into DNF by Fast Downward,
+    exponentially.  So each such condition c (``!guard`` of an automatic transition, each
+    invariant) gets a fluent ``ok[c]``, true only when c is known to hold.  An action that assigns
+    a variable of c sets ``ok[c]`` to whether c, regressed through its effects, is constantly
+    true; a zero-cost action ``$check[c]`` (precondition c and the ``ok`` of every earlier
+    condition, so checks run in one fixed order, invariants first) sets it.  Every real action
+    needs all invariant ``ok``s (a bad state is a dead end), non-automatic ones also all
+    automatic ``ok``s, and the goal all invariant ``ok``s.  Real actions cost 1 and checks 0, so
+    the optimal cost is the minimal number of steps; :func:`transition_of` gives None for checks.
     """
     m = model if isinstance(model, FlatModel) else FlatModel.from_dict(model)
     sup = _supervisor_exprs(m, supervisor_guards)
     s0 = m.state(start)
     problem = Problem("sequence_planner")
     enc = _Encoder(m, encoding, problem)
-    inv = mk_and(m.specs.values()) if enforce_specifications else T
-    autos = [t.guard for t in m.transitions.values() if t.kind == "automatic"]
+    conds = [(f"spec:{n}", e, True) for n, e in m.specs.items() if enforce_specifications]
+    conds += [
+        (t.name, mk_not(t.guard), False) for t in m.transitions.values() if t.kind == "automatic"
+    ]
+    lazy = [_Lazy(enc.add_flag(f"ok[{n}]", evaluate(c, s0)), c, sp) for n, c, sp in conds]
+    costs: dict[upm.Action, upm.FNode | int] = {}
+    for i, c in enumerate(lazy):
+        earlier = [Lit(e.flag, True) for e in lazy[:i]]
+        pre = mk_and([c.cond, NotE(Lit(c.flag, True)), *earlier])
+        if pre != F:
+            a = InstantaneousAction(f"{CHECK_PREFIX}[{c.flag}]")
+            a.add_precondition(enc.expr(pre))
+            a.add_effect(enc.bool_fl[c.flag](), True)
+            problem.add_action(a)
+            costs[a] = 0
+    specs_ok = mk_and(Lit(c.flag, True) for c in lazy if c.is_spec)
+    all_ok = mk_and(Lit(c.flag, True) for c in lazy)
     for t in m.transitions.values():
         if t.kind == "maintenance" and not maintenance:
             continue
         g_known, g_excl = facts(t.guard)
-        srcs = t.sources()
-        for vals in itertools.product(*(m.variables[y].domain for y in srcs)):
-            binding = dict(zip(srcs, vals))
-            if any(g_known.get(y, v) != v or v in g_excl.get(y, ()) for y, v in binding.items()):
+        srcs = [y for y in t.sources() if y not in g_known]
+        pins = list(dict.fromkeys(srcs + enc.pinned(t, g_known)))
+        for vals in itertools.product(*(m.variables[y].domain for y in pins)):
+            binding = dict(zip(pins, vals, strict=True))
+            if any(v in g_excl.get(y, ()) for y, v in binding.items()):
                 continue
             known = {**g_known, **binding}
-            conj = [partial(t.guard, binding)] + [Lit(y, v) for y, v in binding.items()]
+            new = {x: (known[str(v)] if copy else v) for x, v, copy in t.actions}
+            if all(known.get(x) == v for x, v in new.items()):
+                continue  # changes nothing: never part of a minimal plan (and FD needs effects)
+            conj = [partial(t.guard, binding), *(Lit(y, v) for y, v in binding.items())]
             conj.append(partial(sup.get(t.name, T), known, g_excl))
-            if t.kind != "automatic":
-                conj += [mk_not(partial(a, known, g_excl)) for a in autos]
-            new = {x: (binding[v] if copy else v) for x, v, copy in t.actions}  # type: ignore[index]
-            conj.append(partial(partial(inv, new), known, g_excl))
+            conj.append(specs_ok if t.kind == "automatic" else all_ok)
             pre = mk_and(conj)
             if pre == F:
                 continue
             suffix = ",".join(f"{y}={v}" for y, v in binding.items())
-            name = f"{t.name}[{suffix}]" if suffix else t.name
-            a = InstantaneousAction(name, OrderedDict(enc.old_params(new, known)))
+            a = InstantaneousAction(
+                f"{t.name}[{suffix}]" if suffix else t.name,
+                OrderedDict(enc.old_params(new, known)),
+            )
             if pre != T:
                 a.add_precondition(enc.expr(pre))
             enc.add_effects(a, new, known)
+            changed = {x for x, v in new.items() if known.get(x) != v}
+            for c in lazy:
+                if variables(c.cond) & changed:
+                    holds = partial(partial(c.cond, new), known, g_excl) == T
+                    a.add_effect(enc.bool_fl[c.flag](), holds)
             problem.add_action(a)
     enc.initial(s0)
-    problem.add_goal(FALSE() if m.is_bad(s0) else enc.expr(m.parse(goal)))
-    problem.add_quality_metric(MinimizeSequentialPlanLength())
+    problem.add_goal(FALSE() if m.is_bad(s0) else enc.expr(mk_and([m.parse(goal), specs_ok])))
+    problem.add_quality_metric(MinimizeActionCosts(costs, default=1))
     return problem
 
 
 def to_pddl(
-    model: Mapping[str, object] | FlatModel,
+    model: Mapping[str, Any] | FlatModel,
     start: Mapping[str, object] | None,
     goal: str,
     supervisor_guards: Mapping[str, str] | None = None,

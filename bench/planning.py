@@ -20,8 +20,6 @@ import statistics
 import subprocess
 import sys
 import tempfile
-import threading
-import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -56,6 +54,7 @@ class Row:
     peak_mb: float
     fd_ms: float | None
     fd_status: str
+    sat_ms: float | None
 
 
 def family_instances(directory: Path) -> list[Instance]:
@@ -76,26 +75,41 @@ def demo_instances() -> list[Instance]:
     return [Instance("demo: assemble_engine", demo, "assemble_engine.goal")]
 
 
-def run_sp(instance: Instance, timeout: float) -> tuple[dict[str, Any] | None, float, float]:
+# Measured from a small stdlib-only launcher process: Linux carries a parent's peak RSS into
+# a vfork()ed child at exec, so children of this (large) process would report its size.
+_LAUNCHER = """
+import json, os, subprocess, sys, threading, time
+timeout = float(sys.argv[1]); command = sys.argv[2:]
+started = time.perf_counter()
+child = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+timer = threading.Timer(timeout, child.kill); timer.start()
+out = child.stdout.read()
+_, status, usage = os.wait4(child.pid, 0)
+timer.cancel()
+print(json.dumps({"stdout": out.decode(), "wall": time.perf_counter() - started,
+                  "peak_kb": usage.ru_maxrss}))
+"""
+
+
+def run_sp(
+    instance: Instance, timeout: float, engine: str = "bdd"
+) -> tuple[dict[str, Any] | None, float, float]:
     """One whole `sp plan` process: its JSON answer, wall seconds and peak RSS in MB."""
     sp = Path(sys.executable).parent / "sp"
     command = [str(sp), "plan", str(instance.model), "--goal", instance.goal, "--json"]
-    started = time.perf_counter()
-    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
-    timer = threading.Timer(timeout, process.kill)
-    timer.start()
-    assert process.stdout is not None
-    stdout = process.stdout.read()
-    # reap the child ourselves: wait4 returns its own resource usage (ru_maxrss in KB)
-    _, status, usage = os.wait4(process.pid, 0)
-    wall = time.perf_counter() - started
-    timer.cancel()
-    process.returncode = os.waitstatus_to_exitcode(status)
-    peak = usage.ru_maxrss / 1024
+    command += ["--engine", engine]
+    launched = subprocess.run(
+        [sys.executable, "-c", _LAUNCHER, str(timeout), *command],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    report = json.loads(launched.stdout)
     try:
-        return json.loads(stdout), wall, peak
+        answer = json.loads(report["stdout"])
     except json.JSONDecodeError:
-        return None, wall, peak
+        answer = None
+    return answer, report["wall"], report["peak_kb"] / 1024
 
 
 def sizes(instance: Instance) -> tuple[int, int, int, int]:
@@ -112,24 +126,27 @@ def fast_downward(instance: Instance, timeout: float) -> tuple[float | None, str
     if instance.model_dict is None:
         return None, "n/a"
     try:
-        from bench.fast_downward import solve_optimal
+        from bench.fd_runner import solve_optimal
         from bench.pddl_export import to_up_problem
     except ImportError:
         return None, "not installed"
     from planner.station import load_station
-    from planner.transition_planner import TransitionPlanner
 
     model = load_station(instance.model.read_text(), str(instance.model)).model
-    guards = {g.transition: g.describe() for g in TransitionPlanner(model).guards}
     start = dict(model.initial_values())
-    problem = to_up_problem(instance.model_dict, start, instance.goal, guards)
+    # FD gets the specifications as invariants checked after every step rather than our
+    # supervisor guards (large guards blow up FD's translation); the plan lengths are
+    # compared per instance, so a difference in meaning would show in the table
+    problem = to_up_problem(instance.model_dict, start, instance.goal, enforce_specifications=True)
     result = solve_optimal(problem, timeout)
     if result.status != "optimal":
         return None, result.status
-    return result.seconds * 1000, f"{result.length} steps"
+    return result.seconds * 1000, str(result.length)
 
 
-def measure(instance: Instance, runs: int, timeout: float, fd_timeout: float) -> Row:
+def measure(
+    instance: Instance, runs: int, timeout: float, fd_timeout: float, sat_timeout: float
+) -> Row:
     variables, bits, transitions, reachable = sizes(instance)
     times: list[float] = []
     length: int | None = None
@@ -142,6 +159,9 @@ def measure(instance: Instance, runs: int, timeout: float, fd_timeout: float) ->
             break
         length = answer.get("length")
     fd_ms, fd_status = fast_downward(instance, fd_timeout) if fd_timeout > 0 else (None, "skipped")
+    sat_answer, sat_wall, _ = (
+        run_sp(instance, sat_timeout, "sat") if sat_timeout > 0 else (None, 0, 0)
+    )
     return Row(
         instance.name,
         variables,
@@ -154,6 +174,7 @@ def measure(instance: Instance, runs: int, timeout: float, fd_timeout: float) ->
         peak,
         fd_ms,
         fd_status,
+        sat_wall * 1000 if sat_answer is not None else None,
     )
 
 
@@ -167,19 +188,22 @@ def nuxmv(length: int | None) -> str:
 def table(rows: list[Row]) -> str:
     header = (
         "| instance | variables (bits) | transitions | reachable states | plan length "
-        "| sp plan median ms | max ms | peak MB | Fast Downward opt. ms | FD / sp "
-        "| nuXmv ms (seed) |\n"
-        "|---|---|---|---|---|---|---|---|---|---|---|\n"
+        "| sp plan median ms | max ms | peak MB | --engine sat ms | Fast Downward opt. ms "
+        "| FD / sp | nuXmv ms (seed) |\n"
+        "|---|---|---|---|---|---|---|---|---|---|---|---|\n"
     )
     lines = []
     for r in rows:
         fd = f"{r.fd_ms:,.0f}" if r.fd_ms is not None else r.fd_status
+        if r.fd_ms is not None and r.fd_status != str(r.length):
+            fd += f" (length {r.fd_status}!)"
         ratio = f"{r.fd_ms / r.median_ms:.1f}x" if r.fd_ms is not None else ""
         length = str(r.length) if r.length is not None else "timeout"
+        sat = f"{r.sat_ms:,.0f}" if r.sat_ms is not None else "timeout"
         lines.append(
             f"| {r.instance} | {r.variables} ({r.bits}) | {r.transitions} | {r.reachable:,} "
-            f"| {length} | {r.median_ms:,.0f} | {r.max_ms:,.0f} | {r.peak_mb:.0f} | {fd} "
-            f"| {ratio} | {nuxmv(r.length)} |"
+            f"| {length} | {r.median_ms:,.0f} | {r.max_ms:,.0f} | {r.peak_mb:.0f} | {sat} "
+            f"| {fd} | {ratio} | {nuxmv(r.length)} |"
         )
     return header + "\n".join(lines) + "\n"
 
@@ -201,6 +225,7 @@ def main() -> None:
     parser.add_argument("--runs", type=int, default=5)
     parser.add_argument("--timeout", type=float, default=60.0, help="seconds per sp plan run")
     parser.add_argument("--fd-timeout", type=float, default=120.0, help="0 skips Fast Downward")
+    parser.add_argument("--sat-timeout", type=float, default=30.0, help="0 skips --engine sat")
     parser.add_argument("--only", nargs="*", help="instance names containing these texts")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
@@ -209,7 +234,7 @@ def main() -> None:
             instances = [i for i in instances if any(o in i.name for o in args.only)]
         rows = []
         for instance in instances:
-            row = measure(instance, args.runs, args.timeout, args.fd_timeout)
+            row = measure(instance, args.runs, args.timeout, args.fd_timeout, args.sat_timeout)
             rows.append(row)
             print(table([row]).splitlines()[-1], flush=True)
     text = f"Machine: {machine()}\n\n" + table(rows)

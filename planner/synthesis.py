@@ -9,23 +9,22 @@ excludes bad states directly, which is equivalent for plans.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 from planner.expressions import (
-    FALSE,
-    TRUE,
     BoolVar,
     Equals,
     Expr,
     Not,
+    Value,
     conjunction,
     disjunction,
     format_expr,
     negation,
 )
 from planner.model import Specification, TransitionKind
-from planner.symbolic import Function, SymbolicModel, SymbolicTransition, cudd
+from planner.symbolic import Function, SymbolicModel, SymbolicTransition
 
 
 def automatic_guard(sym: SymbolicModel, disabled: frozenset[str] = frozenset()) -> Function:
@@ -108,9 +107,11 @@ def supervisor_guards(sym: SymbolicModel, bad: Function) -> list[SupervisorGuard
         forbidden = sym.preimage(t, bad) & care
         if forbidden == sym.false:
             continue
-        allowed = cudd.restrict(~forbidden, care)
-        positive = to_expr(sym, allowed)
-        negative = negation(to_expr(sym, cudd.restrict(forbidden, care)))
+        dont_care = ~care
+        # the shortest of: what is allowed, or "not" what is forbidden, each as an
+        # irredundant sum of products that may use the states where t cannot be taken
+        positive = cover_expr(sym, ~forbidden & care, ~forbidden | dont_care)
+        negative = negation(cover_expr(sym, forbidden, forbidden | dont_care))
         guard = min(positive, negative, key=lambda e: len(format_expr(e)))
         result.append(SupervisorGuard(t.name, guard, sym.count(forbidden)))
     return result
@@ -161,52 +162,75 @@ def _next_looping_step(
 # ---- readable predicates from BDDs -----------------------------------------------------------
 
 
-def to_expr(sym: SymbolicModel, u: Function) -> Expr:
-    """An expression over the model's variables equivalent to `u` on valid states.
+def cover_expr(sym: SymbolicModel, lower: Function, upper: Function) -> Expr:
+    """A short expression true on all of `lower` and nowhere outside `upper`.
 
-    Walks the variables in order; at each, values that lead to the same sub-function are
-    grouped into one literal (`x == a`, `x != b`, `!flag`), so guards read as the engineer
-    would write them rather than as bits.
+    An irredundant sum of products between the two bounds (Minato-Morreale ISOP), whose
+    cubes over bits are read back as literals over the model's variables.
     """
-    involved = {bit for bit in sym.bdd.support(u)}
-    variables = [v for v in sym.model.variables if involved.intersection(sym.bits[v.name])]
-    memo: dict[tuple[int, int], Expr] = {}
+    terms = [_cube_literals(sym, cube) for cube in isop(sym, lower, upper)]
+    if len(terms) < 2:
+        return disjunction([conjunction(t) for t in terms])
+    common = [lit for lit in terms[0] if all(lit in t for t in terms[1:])]
+    rest = [conjunction([lit for lit in t if lit not in common]) for t in terms]
+    return conjunction([*common, disjunction(rest)])
 
-    def walk(node: Function, depth: int) -> Expr:
-        if node == sym.true:
-            return TRUE
-        if node == sym.false:
-            return FALSE
-        key = (int(node), depth)
+
+def isop(sym: SymbolicModel, lower: Function, upper: Function) -> list[dict[str, bool]]:
+    """Irredundant cubes covering `lower` within `upper` (requires lower <= upper)."""
+    bdd = sym.bdd
+    memo: dict[tuple[Function, Function], tuple[list[dict[str, bool]], Function]] = {}
+
+    def level(u: Function) -> int:
+        return 1 << 30 if u in (sym.true, sym.false) else int(bdd.level_of_var(u.var))
+
+    def go(low: Function, up: Function) -> tuple[list[dict[str, bool]], Function]:
+        if low == sym.false:
+            return [], sym.false
+        if up == sym.true:
+            return [{}], sym.true
+        key = (low, up)
         if key in memo:
             return memo[key]
-        variable = variables[depth]
-        groups: dict[Function, list[object]] = {}
-        for value in variable.domain:
-            cofactor = sym.bdd.let(sym.code(variable.name, value), node)
-            groups.setdefault(cofactor, []).append(value)
-        if len(groups) == 1:
-            result = walk(next(iter(groups)), depth + 1)
-        else:
-            terms = []
-            for sub, values in groups.items():
-                if sub == sym.false:
-                    continue
-                literal = _literal(variable.name, variable.domain, values)
-                terms.append(conjunction([literal, walk(sub, depth + 1)]))
-            result = disjunction(terms)
+        var = bdd.var_at_level(min(level(low), level(up)))
+        l0, l1 = bdd.let({var: False}, low), bdd.let({var: True}, low)
+        u0, u1 = bdd.let({var: False}, up), bdd.let({var: True}, up)
+        c0, f0 = go(l0 & ~u1, u0)
+        c1, f1 = go(l1 & ~u0, u1)
+        cd, fd = go((l0 & ~f0) | (l1 & ~f1), u0 & u1)
+        x = bdd.var(var)
+        cubes = [{**c, var: False} for c in c0] + [{**c, var: True} for c in c1] + cd
+        result = (cubes, (~x & f0) | (x & f1) | fd)
         memo[key] = result
         return result
 
-    return walk(u, 0)
+    return go(lower, upper)[0]
 
 
-def _literal(name: str, domain: tuple[object, ...], values: list[object]) -> Expr:
+def _cube_literals(sym: SymbolicModel, cube: dict[str, bool]) -> list[Expr]:
+    """A cube over bits as literals, one per variable it constrains."""
+    literals: list[Expr] = []
+    for variable in sym.model.variables:
+        bits = sym.bits[variable.name]
+        if not any(b in cube for b in bits):
+            continue
+        values = [
+            value
+            for value in variable.domain
+            if all(cube.get(b, bit) == bit for b, bit in sym.code(variable.name, value).items())
+        ]
+        if len(values) < len(variable.domain):
+            literals.append(_literal(variable.name, variable.domain, values))
+    return literals
+
+
+def _literal(name: str, domain: tuple[Value, ...], values: Sequence[Value]) -> Expr:
+    """`x == v`, `x != v`, `flag`, `!flag`, or a short disjunction, for a set of values."""
     if domain == (False, True):
-        return BoolVar(name) if values == [True] else Not(BoolVar(name))
+        return BoolVar(name) if list(values) == [True] else Not(BoolVar(name))
     if len(values) == 1:
-        return Equals(name, values[0])  # type: ignore[arg-type]
+        return Equals(name, values[0])
     others = [v for v in domain if v not in values]
     if len(others) < len(values):
-        return conjunction([Not(Equals(name, v)) for v in others])  # type: ignore[arg-type]
-    return disjunction([Equals(name, v) for v in values])  # type: ignore[arg-type]
+        return conjunction([Not(Equals(name, v)) for v in others])
+    return disjunction([Equals(name, v) for v in values])

@@ -16,6 +16,7 @@ import os
 import tempfile
 import threading
 import time
+import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -24,12 +25,7 @@ from unified_planning.engines import PlanGenerationResultStatus as S
 from unified_planning.model import Problem
 from unified_planning.shortcuts import OneshotPlanner
 
-if __name__ == "fast_downward" or not __package__:
-    # As a top-level module this file would shadow the ``fast_downward`` package of
-    # fast-downward.translate, which up_fast_downward imports (the engine then silently vanishes).
-    raise ImportError("import this module as bench.fast_downward; keep bench/ off sys.path")
-
-from .pddl_export import transition_of  # noqa: E402
+from .pddl_export import transition_of
 
 OPTIMAL_ENGINE = "fast-downward-opt"
 SATISFICING_ENGINE = "fast-downward"
@@ -92,7 +88,10 @@ def _solve(engine: str, problem: Problem, timeout_s: float) -> FDResult:
     with _private_cwd(), OneshotPlanner(name=engine) as planner:
         start = time.perf_counter()
         try:
-            res = planner.solve(problem, timeout=timeout_s)
+            with warnings.catch_warnings():
+                # on timeout UP SIGTERMs FD but never waits for it nor closes its pipes
+                warnings.simplefilter("ignore", ResourceWarning)
+                res = planner.solve(problem, timeout=timeout_s)
         except Exception as exc:  # unsupported problem kind, PDDL writer errors, ...
             return FDResult("error", None, [], time.perf_counter() - start, log=repr(exc))
         seconds = time.perf_counter() - start
@@ -102,5 +101,6 @@ def _solve(engine: str, problem: Problem, timeout_s: float) -> FDResult:
     process_seconds = float(internal) if internal is not None else None
     if res.plan is None or status not in ("optimal", "satisficing"):
         return FDResult(status, None, [], seconds, process_seconds, log)
-    plan = [transition_of(a.action.name) for a in res.plan.actions]
+    names = (transition_of(a.action.name) for a in res.plan.actions)
+    plan = [n for n in names if n is not None]  # drop zero-cost bookkeeping actions
     return FDResult(status, len(plan), plan, seconds, process_seconds, log)
