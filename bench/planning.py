@@ -59,8 +59,8 @@ class Row:
 
 def family_instances(directory: Path) -> list[Instance]:
     result = []
-    for robots in (1, 2, 3):
-        for bolts in range(1, 7):
+    for robots, most in ((1, 6), (2, 6), (3, 4)):
+        for bolts in range(1, most + 1):
             model_dict = family.station(bolts, robots)
             path = directory / f"family_b{bolts}_r{robots}.yaml"
             path.write_text(yaml.safe_dump(model_dict, sort_keys=False, width=200))

@@ -127,3 +127,30 @@ def test_supervisor_guards_forbid_exactly_the_steps_into_bad_states(
                 continue
             leads_to_bad = without.apply(state) in bad
             assert with_guard.guard(state) == (not leads_to_bad), (without.name, state)
+
+
+@SETTINGS
+@given(data=st.data())
+def test_reachable_states_equal_an_explicit_search(data: st.DataObject) -> None:
+    model_dict = data.draw(flat_models())
+    planner = _planner_or_cycle(model_dict)
+    if planner is None:
+        return
+    oracle_model = O.parse_model(model_dict)
+    bad = O.bad_states(oracle_model)
+    start = data.draw(st.sampled_from(sorted(O.all_states(oracle_model), key=repr)))
+    maintenance = data.draw(st.booleans())
+    expected: set[tuple[object, ...]] = set()
+    todo = [start] if start not in bad else []
+    while todo:
+        state = todo.pop()
+        if state in expected:
+            continue
+        expected.add(state)
+        todo += [
+            s for _, s in O.steps(oracle_model, state, maintenance=maintenance) if s not in bad
+        ]
+    reached = planner.reachable(start, maintenance=maintenance)  # type: ignore[arg-type]
+    assert planner.sym.count(reached) == len(expected)
+    for state in expected:
+        assert planner.sym.contains(reached, state)  # type: ignore[arg-type]
