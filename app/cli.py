@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 from collections import Counter
@@ -42,6 +43,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except UsageError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # `sp check MODEL | head`: the reader has gone, nothing to report
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -53,6 +57,9 @@ def _parser() -> argparse.ArgumentParser:
     plan.add_argument("--state", help="start state: JSON object name -> value (all variables)")
     plan.add_argument("--max-steps", type=_non_negative, default=100, metavar="N")
     plan.add_argument("--maintenance", action="store_true", help="allow maintenance transitions")
+    plan.add_argument(
+        "--restart", action="store_true", help="restart mode: allow restart abilities"
+    )
     plan.add_argument("--json", action="store_true", help="print one JSON object")
     plan.add_argument(
         "--engine",
@@ -102,7 +109,13 @@ def _plan(args: argparse.Namespace, started: float) -> int:
     goal = _goal(station, args.goal)
     start = _read_state(model, args.state) if args.state else tuple(model.initial_values().values())
     planner = TransitionPlanner(model, engine=args.engine)
-    query = PlanQuery(start, goal, max_steps=args.max_steps, maintenance=args.maintenance)
+    query = PlanQuery(
+        start,
+        goal,
+        max_steps=args.max_steps,
+        maintenance=args.maintenance,
+        disabled=frozenset() if args.restart else station.restart_transitions,
+    )
     result = planner.plan(query)
     millis = round((time.perf_counter() - started) * 1000, 3)
     if args.json:

@@ -154,3 +154,25 @@ def test_both_engines_give_the_same_minimal_length() -> None:
         for engine in ("bdd", "sat")
     }
     assert lengths == {"bdd": 5, "sat": 5}
+
+
+def test_restart_abilities_only_in_restart_mode(tmp_path: Path) -> None:
+    station = Path(__file__).parent / "models" / "mini_station.yaml"
+    state = tmp_path / "state.json"
+    state.write_text(
+        json.dumps(
+            {
+                "bp1.state": "placed",
+                "nr.run": False,
+                "nr.running": True,
+                "nr.torque": False,
+                "r1.ref": "bp1",
+                "r1.pos": "bp1",
+            }
+        )
+    )
+    args = ["plan", str(station), "--goal", "r1.pos == home", "--state", str(state), "--json"]
+    normal = json.loads(sp(*args).stdout)
+    restart = json.loads(sp(*args, "--restart").stdout)
+    assert normal["plan"] == ["nr.run_nut.spin_down", "r1.goto_home", "r1.goto.arrive"]
+    assert restart["plan"] == ["r1.back_home", "r1.goto.arrive"]
