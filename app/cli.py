@@ -70,6 +70,13 @@ def _parser() -> argparse.ArgumentParser:
     check = commands.add_parser("check", help="validate a model and print its size")
     check.add_argument("model", help="model file (YAML)")
     check.add_argument("--json", action="store_true", help="print one JSON object")
+    for command in (plan, check):
+        command.add_argument(
+            "--no-cache",
+            action="store_true",
+            help="synthesise the supervisor anew instead of reusing the one saved for this "
+            "model text (in $SP_CACHE_DIR or ~/.cache/sequence-planner)",
+        )
     return parser
 
 
@@ -83,12 +90,19 @@ def _non_negative(text: str) -> int:
     return value
 
 
-def _read_station(path: str) -> Station:
+def _read_station(path: str) -> tuple[Station, str]:
     try:
         text = Path(path).read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise UsageError(f"{path}: cannot read the model: {exc}") from None
-    return load_station(text, path)
+    return load_station(text, path), text
+
+
+def _planner(args: argparse.Namespace, model: Model, text: str, engine: str = "bdd") -> Any:
+    from app import supervisor_cache
+
+    directory = None if args.no_cache else supervisor_cache.default_directory()
+    return supervisor_cache.planner(model, text, engine, directory)
 
 
 def _goal(station: Station, text: str) -> Expr:
@@ -102,13 +116,11 @@ def _goal(station: Station, text: str) -> Expr:
 
 
 def _plan(args: argparse.Namespace, started: float) -> int:
-    from planner.transition_planner import TransitionPlanner
-
-    station = _read_station(args.model)
+    station, text = _read_station(args.model)
     model = station.model
     goal = _goal(station, args.goal)
     start = _read_state(model, args.state) if args.state else tuple(model.initial_values().values())
-    planner = TransitionPlanner(model, engine=args.engine)
+    planner = _planner(args, model, text, args.engine)
     query = PlanQuery(
         start,
         goal,
@@ -209,10 +221,9 @@ def _state_error(path: str, line: int, column: int, message: str) -> NoReturn:
 
 
 def _check(args: argparse.Namespace) -> int:
-    from planner.transition_planner import TransitionPlanner
-
-    model = _read_station(args.model).model
-    planner = TransitionPlanner(model)
+    station, text = _read_station(args.model)
+    model = station.model
+    planner = _planner(args, model, text)
     report = _size_report(model, planner)
     if args.json:
         print(json.dumps(report))

@@ -234,25 +234,29 @@ class Reader:
     def expression(
         self, node: yaml.Node, scope: Scope, what: str, values: Mapping[str, str] | None = None
     ) -> Expr | None:
-        filled = self.template(node, what, values)
-        if filled is None:
-            return None
-        text, back = filled
-        try:
-            return resolve(parse_syntax(text), scope)
-        except ExpressionError as exc:
-            self.error_at(self.at_offset(node, back(exc.offset)), f"in {what}: {exc.message}")
-            return None
+        return self._parse(node, what, values, lambda text: resolve(parse_syntax(text), scope))
 
     def action(
         self, node: yaml.Node, scope: Scope, what: str, values: Mapping[str, str] | None = None
     ) -> Assign | None:
+        return self._parse(
+            node, what, values, lambda text: resolve_assign(parse_assign_syntax(text), scope)
+        )
+
+    def _parse(
+        self,
+        node: yaml.Node,
+        what: str,
+        values: Mapping[str, str] | None,
+        parse: Callable[[str], T],
+    ) -> T | None:
+        """Parse a scalar (placeholders filled in); an error is recorded at its position."""
         filled = self.template(node, what, values)
         if filled is None:
             return None
         text, back = filled
         try:
-            return resolve_assign(parse_assign_syntax(text), scope)
+            return parse(text)
         except ExpressionError as exc:
             self.error_at(self.at_offset(node, back(exc.offset)), f"in {what}: {exc.message}")
             return None

@@ -184,6 +184,12 @@ class SymbolicModel:
         """Reorder the BDD variables once by sifting (deterministic: called at fixed points)."""
         cudd.reorder(self.bdd)
 
+    def reorder(self, order: list[str]) -> None:
+        """Put the BDD variables in the given order (a saved one); unknown names are an error."""
+        if sorted(order) != sorted(self.bdd.vars):
+            raise ValueError("the saved variable order does not match this model's bits")
+        cudd.reorder(self.bdd, {name: level for level, name in enumerate(order)})
+
     # -- encoding ------------------------------------------------------------------------------
 
     def code(self, variable: str, value: Value) -> dict[str, bool]:

@@ -7,6 +7,7 @@ default; `sat`: incremental SAT bounded model checking, the papers' method).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from functools import cached_property
 
 from planner.expressions import variables_of
@@ -61,17 +62,31 @@ def _show(value: object) -> str:
     return str(value)
 
 
+Restore = Callable[[SymbolicModel], Function]
+"""Puts a saved variable order into a fresh encoding and returns the saved bad states."""
+
+
 class TransitionPlanner:
-    def __init__(self, model: Model, engine: str = "bdd") -> None:
+    """Built once per model; `restore` skips synthesis with a saved supervisor (see `saved`)."""
+
+    def __init__(self, model: Model, engine: str = "bdd", restore: Restore | None = None) -> None:
         if engine not in ENGINES:
             raise ValueError(f"unknown engine '{engine}'; use one of {', '.join(ENGINES)}")
         self.model = model
         self.engine = engine
         self.sym = SymbolicModel(model)
         check_dynamics(self.sym)
-        self.bad = bad_states(self.sym)
-        self.sym.sift()  # the specifications and guards now in the manager shape a good order
+        if restore is None:
+            self.bad = bad_states(self.sym)
+            self.sym.sift()  # the specifications and guards now in the manager shape the order
+        else:
+            self.bad = restore(self.sym)
         self._search = SymbolicSearch(self.sym, self.bad)
+
+    def order(self) -> list[str]:
+        """The current BDD variable order, for saving with the bad states."""
+        bdd = self.sym.bdd
+        return sorted(bdd.vars, key=bdd.level_of_var)
 
     @cached_property
     def guards(self) -> list[SupervisorGuard]:

@@ -10,3 +10,9 @@ from hypothesis import settings
 settings.register_profile("ci", derandomize=True, database=None, print_blob=True)
 if os.environ.get("CI"):
     settings.load_profile("ci")
+
+# `sp` saves synthesised supervisors; tests keep theirs out of the user's cache
+if "SP_CACHE_DIR" not in os.environ:
+    import tempfile
+
+    os.environ["SP_CACHE_DIR"] = tempfile.mkdtemp(prefix="sp-test-cache-")

@@ -25,6 +25,18 @@ except ImportError:  # pragma: no cover
     from strategies import flat_models, queries  # type: ignore[no-redef]
 
 
+def _draw_order(data: st.DataObject, order: list[Block]) -> list[int]:
+    """A random order of the blocks that the partial order allows (a topological order)."""
+    done: list[int] = []
+    remaining = list(range(len(order)))
+    while remaining:
+        ready = [k for k in remaining if order[k].after <= set(done)]
+        chosen = data.draw(st.sampled_from(ready))
+        done.append(chosen)
+        remaining.remove(chosen)
+    return done
+
+
 @settings(
     max_examples=600,
     deadline=None,
@@ -48,14 +60,7 @@ def test_any_order_the_partial_order_allows_is_legal_and_ends_the_same(
         return
     order = blocks(model, result.plan, {g.transition: g.guard for g in planner.guards})
     assert [s for b in order for s in b.steps] == list(result.plan)
-    # draw a topological order of the blocks: any block whose dependencies are done
-    done: list[int] = []
-    remaining = list(range(len(order)))
-    while remaining:
-        ready = [k for k in remaining if order[k].after <= set(done)]
-        chosen = data.draw(st.sampled_from(ready))
-        done.append(chosen)
-        remaining.remove(chosen)
+    done = _draw_order(data, order)
     reordered = [s for k in done for s in order[k].steps]
     problem = O.replay(oracle_model, start, reordered, q["goal"], maintenance=q["maintenance"])
     assert problem is None, (done, problem)
@@ -129,13 +134,7 @@ def test_reordered_station_plans_stay_legal(
     bolt_station: tuple[TransitionPlanner, PlanQuery, list[Block]], data: st.DataObject
 ) -> None:
     planner, query, order = bolt_station
-    done: list[int] = []
-    remaining = list(range(len(order)))
-    while remaining:
-        ready = [k for k in remaining if order[k].after <= set(done)]
-        chosen = data.draw(st.sampled_from(ready))
-        done.append(chosen)
-        remaining.remove(chosen)
+    done = _draw_order(data, order)
     steps = [s for k in done for s in order[k].steps]
     assert _replay(planner, query.start, steps) is None
     final = Semantics(planner.model)

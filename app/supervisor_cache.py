@@ -1,0 +1,79 @@
+"""A disk cache of synthesised supervisors, so that repeated `sp` runs on a model skip synthesis.
+
+Synthesis (the bad states of the specifications) is the slow part of building a planner on a
+large model (seconds on the demo station) and depends only on the model's text.  The cache
+keeps, per model text, the BDD variable order and a checksum (JSON) and the bad states (CUDD's
+DDDMP format), keyed by a SHA-256 of the text, the `dd` version and this format's number.
+Anything missing, unreadable or inconsistent falls back to synthesis; failing to write is not
+an error.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import tempfile
+from pathlib import Path
+
+from planner.model import Model
+from planner.symbolic import Function, SymbolicModel
+from planner.transition_planner import TransitionPlanner
+
+FORMAT = 1
+
+
+def default_directory() -> Path:
+    if "SP_CACHE_DIR" in os.environ:
+        return Path(os.environ["SP_CACHE_DIR"])
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "sequence-planner"
+
+
+def key(text: str) -> str:
+    import dd
+
+    digest = hashlib.sha256()
+    digest.update(f"sequence-planner supervisor {FORMAT} dd {dd.__version__}\n".encode())
+    digest.update(text.encode())
+    return digest.hexdigest()
+
+
+def planner(model: Model, text: str, engine: str, directory: Path | None) -> TransitionPlanner:
+    """A planner for `model` (read from `text`), with its supervisor from the cache if saved."""
+    if directory is None:
+        return TransitionPlanner(model, engine)
+    name = key(text)
+    order_path, bad_path = directory / f"{name}.json", directory / f"{name}.dddmp"
+    if order_path.exists() and bad_path.exists():
+        try:
+            entry = json.loads(order_path.read_text())
+            # CUDD's DDDMP reader crashes the process on a damaged file: check it first
+            if hashlib.sha256(bad_path.read_bytes()).hexdigest() != entry["bad_sha256"]:
+                raise ValueError("the saved bad states do not match their checksum")
+
+            def restore(sym: SymbolicModel) -> Function:
+                sym.reorder(entry["order"])
+                (bad,) = sym.bdd.load(str(bad_path))
+                return bad
+
+            return TransitionPlanner(model, engine, restore=restore)
+        except (OSError, ValueError, RuntimeError, KeyError, TypeError):
+            pass  # a damaged entry: synthesise again and overwrite it
+    built = TransitionPlanner(model, engine)
+    _save(built, directory, order_path, bad_path)
+    return built
+
+
+def _save(built: TransitionPlanner, directory: Path, order_path: Path, bad_path: Path) -> None:
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryDirectory(dir=directory) as tmp:
+            order_tmp, bad_tmp = Path(tmp) / "order.json", Path(tmp) / "bad.dddmp"
+            built.sym.bdd.dump(str(bad_tmp), [built.bad])
+            checksum = hashlib.sha256(bad_tmp.read_bytes()).hexdigest()
+            order_tmp.write_text(json.dumps({"order": built.order(), "bad_sha256": checksum}))
+            os.replace(bad_tmp, bad_path)  # the JSON last: its presence marks a whole entry
+            os.replace(order_tmp, order_path)
+    except (OSError, RuntimeError):
+        pass  # a read-only home or a full disk only costs the next run its time
