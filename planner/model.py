@@ -112,9 +112,6 @@ class Model:
     def transition(self, name: str) -> Transition:
         return self.transitions[self.transition_index[name]]
 
-    def transitions_of(self, *kinds: TransitionKind) -> tuple[Transition, ...]:
-        return tuple(t for t in self.transitions if t.kind in kinds)
-
     @property
     def domains(self) -> dict[str, tuple[Value, ...]]:
         return {v.name: v.domain for v in self.variables}

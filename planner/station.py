@@ -42,7 +42,6 @@ from planner.loading import (
 from planner.model import Model, Specification, Transition, TransitionKind, Variable
 
 STATION_KEYS = ("station", "description", "resources", "operations", "intentions")
-STANDARD_PREDICATES = ("enabled", "starting", "executing", "finished", "resetting")
 _RESOURCE_KEYS = ("name", "description", "variables", "abilities", "transitions")
 _ABILITY_KEYS = (
     "name",

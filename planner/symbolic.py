@@ -293,7 +293,6 @@ class SymbolicModel:
             else:
                 for a, b in zip(targets, self.bits[action.source], strict=True):
                     relation &= self.bdd.apply("<=>", self.bdd.var(a + "p"), self.bdd.var(b))
-        del written
         return SymbolicTransition(t, guard, written_bits, None, relation, primes, substitution)
 
     def _post(self, action: Assign) -> Function:
@@ -361,6 +360,3 @@ class SymbolicModel:
 
     def contains(self, states: Function, values: State) -> bool:
         return bool((states & self.state(values)) != self.false)
-
-    def node_count(self, states: Function) -> int:
-        return len(states)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from functools import cached_property
+from typing import TYPE_CHECKING
 
 from planner.expressions import variables_of
 from planner.loading import Diagnostic, ModelError
@@ -24,6 +25,9 @@ from planner.synthesis import (
     supervisor_guards,
     violated_by,
 )
+
+if TYPE_CHECKING:
+    from planner.bmc import BoundedModelChecker
 
 ENGINES = ("bdd", "sat")
 
@@ -93,21 +97,14 @@ class TransitionPlanner:
         return supervisor_guards(self.sym, self.bad)
 
     @cached_property
-    def _bmc(self) -> object:
-        from planner.bmc import BoundedModelChecker
+    def _bmc(self) -> BoundedModelChecker:
+        from planner.bmc import BoundedModelChecker  # PySAT is loaded only when asked for
 
         return BoundedModelChecker(self.sym, self.bad)
 
     def plan(self, query: PlanQuery, engine: str | None = None) -> PlanResult:
         chosen = engine or self.engine
-        if chosen == "sat":
-            from planner.bmc import BoundedModelChecker
-
-            checker = self._bmc
-            assert isinstance(checker, BoundedModelChecker)
-            result = checker.plan(query)
-        else:
-            result = self._search.plan(query)
+        result = self._bmc.plan(query) if chosen == "sat" else self._search.plan(query)
         if result.status is PlanStatus.BAD_START:
             result = PlanResult(
                 PlanStatus.BAD_START,
