@@ -35,6 +35,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         if args.command == "plan":
             return _plan(args, started)
+        if args.command == "run":
+            return _run(args)
         return _check(args)
     except ModelError as exc:
         for diagnostic in exc.diagnostics:
@@ -67,10 +69,28 @@ def _parser() -> argparse.ArgumentParser:
         default="bdd",
         help="bdd: symbolic breadth-first search (default); sat: incremental SAT BMC",
     )
+    run = commands.add_parser(
+        "run", help="run the station headless against its simulated world; print the event log"
+    )
+    run.add_argument("model", help="model file (YAML)")
+    run.add_argument("--scenario", help="scenario file (YAML): start, faults, operator answers")
+    run.add_argument(
+        "--speed",
+        type=float,
+        default=1.0,
+        metavar="X",
+        help="X times real time (default 1); 0 runs as fast as possible",
+    )
+    run.add_argument("--json", action="store_true", help="print events as JSON lines")
+    run.add_argument(
+        "--quiet",
+        action="store_true",
+        help="leave out effects and taken transitions (the routine part of the log)",
+    )
     check = commands.add_parser("check", help="validate a model and print its size")
     check.add_argument("model", help="model file (YAML)")
     check.add_argument("--json", action="store_true", help="print one JSON object")
-    for command in (plan, check):
+    for command in (plan, run, check):
         command.add_argument(
             "--no-cache",
             action="store_true",
@@ -135,6 +155,34 @@ def _plan(args: argparse.Namespace, started: float) -> int:
     else:
         _print_plan(result, millis)
     return 0 if result.status is PlanStatus.FOUND else 1
+
+
+def _run(args: argparse.Namespace) -> int:
+    from app.scenario import Planners, Scenario, ScenarioError, load_scenario, play
+    from planner.operation_planner import OperationPlanner
+
+    if args.speed < 0:
+        raise UsageError("--speed must be 0 or more")
+    station, text = _read_station(args.model)
+    if args.scenario:
+        try:
+            scenario_text = Path(args.scenario).read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            raise UsageError(f"{args.scenario}: cannot read the scenario: {exc}") from None
+        try:
+            scenario = load_scenario(scenario_text, args.scenario, station)
+        except ScenarioError as exc:
+            raise UsageError(str(exc)) from None
+    else:
+        scenario = Scenario(file="(none)")
+    planners = Planners(_planner(args, station.model, text), OperationPlanner(station))
+    finished = False
+    for event in play(station, scenario, planners, speed=args.speed, stopwatch=time.perf_counter):
+        if args.quiet and event.kind in ("effect", "taken"):
+            continue
+        print(json.dumps(event.as_json(), default=str) if args.json else event, flush=True)
+        finished = event.kind == "done"
+    return 0 if finished else 1
 
 
 def _plan_json(result: PlanResult, millis: float) -> dict[str, Any]:

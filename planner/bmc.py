@@ -192,6 +192,10 @@ class BoundedModelChecker:
         self.bad_circuit = BddCircuit(sym, bad)
 
     def plan(self, query: PlanQuery) -> PlanResult:
+        if query.relaxed:
+            raise ValueError(
+                "forbidden-state recovery (relaxed specifications) needs the bdd engine"
+            )
         sym = self.sym
         usable = [
             t

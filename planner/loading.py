@@ -388,6 +388,11 @@ def read_transition(
     if fields is None or "name" not in fields:
         return None
     name = reader.name(fields["name"][1], "transition name")
+    about = (
+        reader.scalar(fields["description"][1], "description") or ""
+        if "description" in fields
+        else ""
+    )
     kind = TransitionKind.CONTROLLED
     if "kind" in fields:
         text = reader.scalar(fields["kind"][1], "transition kind")
@@ -412,8 +417,8 @@ def read_transition(
     if name is None or actions is None:
         return None
     if guard is None:
-        return Transition(name, kind, actions=actions, source=reader.at(node))
-    return Transition(name, kind, guard, actions, reader.at(node))
+        return Transition(name, kind, actions=actions, source=reader.at(node), description=about)
+    return Transition(name, kind, guard, actions, reader.at(node), about)
 
 
 def read_actions(

@@ -72,6 +72,7 @@ class Transition:
     guard: Expr = TRUE
     actions: tuple[Assign, ...] = ()
     source: SourceLocation | None = field(default=None, compare=False)
+    description: str = field(default="", compare=False)  # plain words, for instructions
 
     @property
     def written(self) -> frozenset[str]:

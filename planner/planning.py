@@ -24,6 +24,11 @@ class PlanQuery:
     that are not executing (monotonic abstraction, seed 000 sec. 4.3); `always` must hold in
     every state before the goal is reached (an intention's `phi U goal`); `disabled`
     transitions are removed for this query (timed-out effects, unavailable resources).
+
+    `relaxed` names specifications dropped for forbidden-state recovery (seed 000 sec. 4.6):
+    the plan may pass through states that violate them, must satisfy the other invariants in
+    every state, and ends in a good state (every invariant holds and the supervisor can keep
+    it so); `goal` is conjoined with that.
     """
 
     start: State
@@ -33,6 +38,7 @@ class PlanQuery:
     forbidden: tuple[Expr, ...] = ()
     always: Expr | None = None
     disabled: frozenset[str] = frozenset()
+    relaxed: frozenset[str] = frozenset()
 
 
 @dataclass(frozen=True)

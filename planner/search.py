@@ -33,10 +33,17 @@ class SymbolicSearch:
             and (query.maintenance or t.kind is not TransitionKind.MAINTENANCE)
         ]
         automatic = automatic_guard(sym, query.disabled)
-        allowed = ~self.bad
+        goal = sym.expr(query.goal)
+        if query.relaxed:
+            allowed = sym.true
+            for spec in sym.model.specifications:
+                if spec.name not in query.relaxed:
+                    allowed &= sym.expr(spec.invariant)
+            goal &= ~self.bad
+        else:
+            allowed = ~self.bad
         for predicate in query.forbidden:
             allowed &= ~sym.expr(predicate)
-        goal = sym.expr(query.goal)
         always = sym.expr(query.always) if query.always is not None else sym.true
 
         start = sym.state(query.start)

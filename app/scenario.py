@@ -1,0 +1,258 @@
+"""Scenarios as data, and the headless station loop that plays them (`sp run`).
+
+A scenario is a YAML file: the start state, the intentions to run, runner settings, device
+delays, faults injected at given times or when a condition first holds, and how the
+simulated operator answers (approvals, maintenance work).  `play` runs the runner against the
+simulated world on a virtual clock and yields every event as it happens.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import yaml
+
+from hw.sim import FAULTS, Fault, SimulatedWorld
+from planner.expressions import Expr, Value, parse_expr
+from planner.loading import scope_for
+from planner.operation_planner import OperationPlanner
+from planner.runner import Runner, RunnerState
+from planner.runner_io import Action, Approve, Event, Inputs, MaintenanceDone, RunnerConfig
+from planner.station import Station
+from planner.transition_planner import TransitionPlanner
+
+_KEYS = (
+    "description",
+    "start",
+    "intentions",
+    "config",
+    "delays",
+    "faults",
+    "operator",
+    "until",
+    "expect",
+)
+_CONFIG_KEYS = (
+    "effect_timeout",
+    "effect_timeouts",
+    "heartbeat_timeout",
+    "retries",
+    "recheck_period",
+    "max_steps",
+)
+_FAULT_KEYS = ("at", "when", "kind", "resource", "effect", "instead", "count", "values")
+
+
+class ScenarioError(Exception):
+    """A scenario file that cannot be used; the message names the file and the entry."""
+
+
+@dataclass(frozen=True)
+class ScheduledFault:
+    fault: Fault
+    at: float | None = None
+    when: Expr | None = None
+    text: str = ""
+
+
+@dataclass(frozen=True)
+class Scenario:
+    file: str
+    description: str = ""
+    start: Mapping[str, Value] = field(default_factory=dict)
+    intentions: tuple[str, ...] | None = None
+    config: RunnerConfig = field(default_factory=RunnerConfig)
+    delays: Mapping[str, float] = field(default_factory=dict)
+    default_delay: float = 1.0
+    faults: tuple[ScheduledFault, ...] = ()
+    operator_delay: float = 2.0
+    approve: bool = True
+    maintenance: bool = True
+    until: float = 900.0
+    expect: Mapping[str, Any] = field(default_factory=dict)
+
+
+def load_scenario(text: str, file: str, station: Station) -> Scenario:
+    try:
+        data = yaml.safe_load(text) or {}
+    except yaml.YAMLError as exc:
+        raise ScenarioError(f"{file}: not valid YAML: {exc}") from None
+    if not isinstance(data, dict):
+        raise ScenarioError(f"{file}: a scenario is a mapping with keys {', '.join(_KEYS)}")
+    _known(file, "scenario", data, _KEYS)
+    model = station.model
+    start: dict[str, Value] = {}
+    for name, value in (data.get("start") or {}).items():
+        if name not in model.variable_index:
+            raise ScenarioError(f"{file}: start: unknown variable '{name}'")
+        domain = model.variable(name)
+        if value not in domain.domain:
+            raise ScenarioError(
+                f"{file}: start: {name}: {value!r} is not in {domain.describe_domain()}"
+            )
+        start[name] = value
+    intentions = data.get("intentions")
+    if intentions is not None:
+        known = {i.name for i in station.intentions}
+        for name in intentions:
+            if name not in known:
+                raise ScenarioError(f"{file}: intentions: unknown intention '{name}'")
+        intentions = tuple(intentions)
+    raw_config = data.get("config") or {}
+    _known(file, "config", raw_config, _CONFIG_KEYS)
+    transitions = set(model.transition_index)
+    for effect in raw_config.get("effect_timeouts") or {}:
+        if effect not in transitions:
+            raise ScenarioError(f"{file}: config: effect_timeouts: unknown transition '{effect}'")
+    config = RunnerConfig(
+        auto_intentions=frozenset(intentions) if intentions is not None else None,
+        **{k: v for k, v in raw_config.items()},
+    )
+    delays = dict(data.get("delays") or {})
+    default_delay = float(delays.pop("default", 1.0))
+    scope = scope_for(model.domains, station.predicates)
+    faults = []
+    for k, entry in enumerate(data.get("faults") or []):
+        where = f"{file}: faults[{k}]"
+        if not isinstance(entry, dict):
+            raise ScenarioError(f"{where}: a fault is a mapping with keys {', '.join(_FAULT_KEYS)}")
+        _known(where, "fault", entry, _FAULT_KEYS)
+        kind = entry.get("kind")
+        if kind not in FAULTS:
+            raise ScenarioError(f"{where}: kind must be one of {', '.join(FAULTS)}, not {kind!r}")
+        when = None
+        if "when" in entry:
+            try:
+                when = parse_expr(str(entry["when"]), scope)
+            except Exception as exc:  # the expression parser's own located message
+                raise ScenarioError(f"{where}: when: {exc}") from None
+        if "at" not in entry and when is None:
+            raise ScenarioError(f"{where}: give 'at' (seconds) or 'when' (a condition)")
+        fault = Fault(
+            kind,
+            resource=str(entry.get("resource", "")),
+            effect=str(entry.get("effect", "")),
+            instead=str(entry.get("instead", "")),
+            count=int(entry.get("count", 1)),
+            values=dict(entry.get("values") or {}),
+        )
+        for name in (fault.effect, fault.instead):
+            if name and name not in transitions:
+                raise ScenarioError(f"{where}: unknown transition '{name}'")
+        for name in fault.values:
+            if name not in model.variable_index:
+                raise ScenarioError(f"{where}: values: unknown variable '{name}'")
+        text = ", ".join(f"{key}={entry[key]}" for key in _FAULT_KEYS[2:] if key in entry)
+        at = float(entry["at"]) if "at" in entry else None
+        faults.append(ScheduledFault(fault, at, when, text))
+    operator = data.get("operator") or {}
+    return Scenario(
+        file=file,
+        description=str(data.get("description", "")),
+        start=start,
+        intentions=intentions,
+        config=config,
+        delays=delays,
+        default_delay=default_delay,
+        faults=tuple(faults),
+        operator_delay=float(operator.get("delay", 2.0)),
+        approve=bool(operator.get("approve", True)),
+        maintenance=bool(operator.get("maintenance", True)),
+        until=float(data.get("until", 900.0)),
+        expect=data.get("expect") or {},
+    )
+
+
+def _known(where: str, what: str, data: Mapping[str, Any], keys: tuple[str, ...]) -> None:
+    if not isinstance(data, dict):
+        raise ScenarioError(f"{where}: {what} must be a mapping")
+    for key in data:
+        if key not in keys:
+            raise ScenarioError(f"{where}: unknown {what} key '{key}'; use {', '.join(keys)}")
+
+
+@dataclass
+class Planners:
+    transition: TransitionPlanner
+    operation: OperationPlanner
+
+
+def play(
+    station: Station,
+    scenario: Scenario,
+    planners: Planners,
+    *,
+    step: float = 0.1,
+    speed: float = 0.0,
+    stopwatch: Callable[[], float] | None = None,
+    sleep: Callable[[float], None] = time.sleep,
+    watch: Callable[[RunnerState], None] | None = None,
+) -> Iterator[Event]:
+    """Run the scenario; yields events. `speed` 0 runs as fast as possible, 1 in real time.
+
+    `watch` sees the runner's state after every tick (for tests and monitors).
+    """
+    runner = Runner(station, planners.transition, planners.operation, scenario.config, stopwatch)
+    world = SimulatedWorld(
+        station, delays=scenario.delays, default_delay=scenario.default_delay, start=scenario.start
+    )
+    now = 0.0
+    state: RunnerState = runner.initial(now, scenario.start)
+    pending = list(scenario.faults)
+    answers: list[tuple[float, Action]] = []  # the simulated operator's actions, when due
+    published: dict[str, Value] = dict(state.values)
+    while now <= scenario.until:
+        for scheduled in list(pending):
+            due = scheduled.at is not None and now >= scheduled.at
+            if scheduled.when is not None and runner.holds(scheduled.when, state.values):
+                due = True
+            if due:
+                pending.remove(scheduled)
+                world.inject(scheduled.fault)
+                yield Event(now, "fault", scheduled.fault.kind, {"fault": scheduled.text})
+        world.advance(published, now)
+        actions = tuple(a for t, a in answers if t <= now)
+        answers = [(t, a) for t, a in answers if t > now]
+        for action in actions:
+            if isinstance(action, MaintenanceDone):
+                world.maintenance(action.transition)
+        report = world.report()
+        inputs = Inputs(report.measured, report.observed, report.heartbeats, actions)
+        state, _commands, events = runner.tick(state, inputs, now)
+        published = dict(state.values)
+        if watch is not None:
+            watch(state)
+        for event in events:
+            answers.extend(_operator_answers(event, scenario, now))
+            yield event
+        if _finished(state, scenario):
+            yield Event(now, "done", "all intentions finished")
+            return
+        now = round(now + step, 6)
+        if speed > 0:
+            sleep(step / speed)
+    yield Event(now, "stopped", "time limit", {"until": scenario.until})
+
+
+def _operator_answers(event: Event, scenario: Scenario, now: float) -> list[tuple[float, Action]]:
+    """What the simulated operator does about an event, and when."""
+    delay = scenario.operator_delay
+    if event.kind == "approval" and scenario.approve:
+        out: list[tuple[float, Action]] = [(now + delay, Approve(step=int(event.detail["step"])))]
+        if event.detail.get("type") == "maintenance" and scenario.maintenance:
+            out.append((now + 2 * delay, MaintenanceDone(transition=event.subject)))
+        return out
+    if event.kind == "instruction" and scenario.maintenance:
+        return [
+            (now + (k + 1) * delay, MaintenanceDone(transition=name))
+            for k, name in enumerate(event.detail["steps"])
+        ]
+    return []
+
+
+def _finished(state: RunnerState, scenario: Scenario) -> bool:
+    names = scenario.intentions if scenario.intentions is not None else tuple(state.intentions)
+    return bool(names) and all(state.intentions[n] == "f" for n in names)

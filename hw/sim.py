@@ -1,0 +1,148 @@
+"""A simulated world for a station model: the devices' side of the runner, with faults.
+
+It plays the model's effect transitions as the devices would: an effect whose guard holds
+(on the runner's published commands and estimates, and the world's own measurements) happens
+after its delay, unless a fault stops it.  It owns the measured variables and the products'
+true states, answers with heartbeats for every resource that is connected, and applies the
+operator's maintenance work.  It is the stand-in for devices in the demo and in tests, and it
+is deterministic: the same commands and faults at the same times give the same reports.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+from planner.expressions import Value
+from planner.model import TransitionKind, VariableKind
+from planner.runner_io import Inputs
+from planner.semantics import Semantics
+from planner.station import Station
+
+FAULTS = (
+    "disconnect",  # a resource stops answering; its measurements freeze (E5-E7)
+    "reconnect",
+    "block_effect",  # an effect never happens (a broken lock or release mechanism: E3, E4)
+    "unblock_effect",
+    "replace_effect",  # the next `count` times, another effect happens instead (E8, E9)
+    "set",  # a person changes the world: a part moved, mounted or undone by hand (E1, E2)
+)
+
+
+@dataclass(frozen=True)
+class Fault:
+    kind: str
+    resource: str = ""
+    effect: str = ""
+    instead: str = ""
+    count: int = 1
+    values: Mapping[str, Value] = field(default_factory=dict)
+
+
+class SimulatedWorld:
+    """Devices and products of a station, simulated from its model's effects."""
+
+    def __init__(
+        self,
+        station: Station,
+        *,
+        delays: Mapping[str, float] | None = None,
+        default_delay: float = 1.0,
+        start: Mapping[str, Value] | None = None,
+    ) -> None:
+        self.station = station
+        self.model = station.model
+        self.semantics = Semantics(self.model)
+        self.delays = dict(delays or {})
+        self.default_delay = default_delay
+        self.measured = {v.name for v in self.model.variables if v.kind is VariableKind.MEASURED}
+        self.values: dict[str, Value] = {v.name: v.initial for v in self.model.variables}
+        self.values.update(start or {})
+        self.observed: dict[str, Value] = {}  # product states changed by hand, to report once
+        self.owner: dict[str, str] = {}
+        self.resource_variables: dict[str, frozenset[str]] = {}
+        for resource in station.resources:
+            self.resource_variables[resource.name] = frozenset(resource.variables)
+            for name in resource.transitions:
+                self.owner[name] = resource.name
+        self.disconnected: set[str] = set()
+        self.blocked: set[str] = set()
+        self.replaced: dict[str, tuple[str, int]] = {}
+        self.pending: dict[str, float] = {}  # effect -> when it happens
+        self.effects = [c for c in self.semantics.transitions if c.kind is TransitionKind.EFFECT]
+
+    def delay(self, effect: str) -> float:
+        if effect in self.delays:
+            return self.delays[effect]
+        owner = self.owner.get(effect, "")
+        return self.delays.get(owner, self.default_delay)
+
+    def inject(self, fault: Fault) -> None:
+        match fault.kind:
+            case "disconnect":
+                self.disconnected.add(fault.resource)
+            case "reconnect":
+                self.disconnected.discard(fault.resource)
+            case "block_effect":
+                self.blocked.add(fault.effect)
+            case "unblock_effect":
+                self.blocked.discard(fault.effect)
+            case "replace_effect":
+                self.replaced[fault.effect] = (fault.instead, fault.count)
+            case "set":
+                for name, value in fault.values.items():
+                    self.values[name] = value
+                    if name not in self.measured:
+                        self.observed[name] = value
+            case _:
+                raise ValueError(f"unknown fault '{fault.kind}'; use one of {', '.join(FAULTS)}")
+
+    def maintenance(self, transition: str) -> None:
+        """The operator has done maintenance transition `transition` in the physical world."""
+        chosen = self.semantics.by_name[transition]
+        after = self.semantics.values(chosen.apply(self.semantics.state(self.values)))
+        for name, value in after.items():
+            self.values[name] = value
+
+    def advance(self, published: Mapping[str, Value], now: float) -> None:
+        """Let the devices act on the runner's published state up to time `now`."""
+        for name, value in published.items():
+            if name not in self.measured and name not in self.observed:
+                self.values[name] = value
+        for _ in range(len(self.effects) + 1):
+            state = self.semantics.state(self.values)
+            due = None
+            for effect in self.effects:
+                name = effect.name
+                frozen = self.owner.get(name) in self.disconnected
+                if not effect.guard(state) or frozen or name in self.blocked:
+                    self.pending.pop(name, None)
+                    continue
+                when = self.pending.setdefault(name, now + self.delay(name))
+                if when <= now and due is None:
+                    due = name
+            if due is None:
+                return
+            self.pending.pop(due)
+            happened = due
+            if due in self.replaced:
+                instead, count = self.replaced[due]
+                happened = instead
+                if count <= 1:
+                    del self.replaced[due]
+                else:
+                    self.replaced[due] = (instead, count - 1)
+            chosen = self.semantics.by_name[happened]
+            after = self.semantics.values(chosen.apply(state))
+            for name in self.measured:
+                self.values[name] = after[name]
+
+    def report(self) -> Inputs:
+        """Measurements and heartbeats of the connected resources, and observed product states."""
+        frozen: set[str] = set()
+        for resource in self.disconnected:
+            frozen |= self.resource_variables.get(resource, frozenset())
+        measured = {n: self.values[n] for n in sorted(self.measured) if n not in frozen}
+        observed, self.observed = self.observed, {}
+        heartbeats = frozenset(r.name for r in self.station.resources) - self.disconnected
+        return Inputs(measured=measured, observed=observed, heartbeats=heartbeats)
