@@ -112,6 +112,16 @@ class RunnerState:
     halted: str = ""  # a model error stopped automatic steps
 
 
+def assigned(actions: Iterable[Assign], values: Mapping[str, Value]) -> dict[str, Value]:
+    """The values `actions` assign, every one reading `values` (the state before them)."""
+    out: dict[str, Value] = {}
+    for action in actions:
+        value = values[action.source] if action.source is not None else action.value
+        assert value is not None
+        out[action.target] = value
+    return out
+
+
 class Runner:
     """Runs one station model; built once, ticked forever."""
 
@@ -545,11 +555,7 @@ class _Tick:
             current = s.intentions[name]
             if current == "e" and self.r.intention_goal[name](state):
                 self.set_intention(name, "f", "goal reached")
-                intention = self.r.intentions[name]
-                for action in intention.actions:
-                    s.values[action.target] = (
-                        s.values[action.source] if action.source else action.value  # type: ignore[assignment]
-                    )
+                s.values.update(assigned(self.r.intentions[name].actions, s.values))
                 s.armed.discard(name)
             elif (
                 current == "i"
@@ -594,11 +600,7 @@ class _Tick:
 
     def finish_operation(self, name: str) -> None:
         s = self.state
-        operation = self.r.operations[name]
-        for action in operation.actions:
-            s.values[action.target] = (
-                s.values[action.source] if action.source else action.value  # type: ignore[assignment]
-            )
+        s.values.update(assigned(self.r.operations[name].actions, s.values))
         s.goals.pop(name)
         s.failures.pop(name, None)
         self.set_operation(name, "i", "goal reached")
@@ -614,10 +616,7 @@ class _Tick:
         """The decision state once the executing operations have finished."""
         values = dict(self.state.values)
         for name in self.state.goals:
-            for effect in self.r.operations[name].effects:
-                values[effect.target] = (
-                    self.state.values[effect.source] if effect.source else effect.value  # type: ignore[assignment]
-                )
+            values.update(assigned(self.r.operations[name].effects, self.state.values))
         return values
 
     def operation_plan_reaches(self, active: list[str]) -> bool:
@@ -633,10 +632,7 @@ class _Tick:
                 return False
             if not self.r.operation_pre[name](self.r.as_state(values)):
                 return False
-            for effect in self.r.operations[name].effects:
-                values[effect.target] = (
-                    values[effect.source] if effect.source else effect.value  # type: ignore[assignment]
-                )
+            values.update(assigned(self.r.operations[name].effects, values))
         state = self.r.as_state(values)
         return all(self.r.intention_goal[name](state) for name in active)
 
