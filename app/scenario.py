@@ -246,10 +246,7 @@ def _operator_answers(event: Event, scenario: Scenario, now: float) -> list[tupl
             out.append((now + 2 * delay, MaintenanceDone(transition=event.subject)))
         return out
     if event.kind == "instruction" and scenario.maintenance:
-        return [
-            (now + (k + 1) * delay, MaintenanceDone(transition=name))
-            for k, name in enumerate(event.detail["steps"])
-        ]
+        return [(now + delay, MaintenanceDone(transition=event.subject))]
     return []
 
 

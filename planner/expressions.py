@@ -100,6 +100,13 @@ def conjunction(args: list[Expr] | tuple[Expr, ...]) -> Expr:
     return flat[0] if len(flat) == 1 else And(tuple(flat))
 
 
+def conjuncts(expr: Expr) -> tuple[Expr, ...]:
+    """The top-level parts of a conjunction (the expression itself if it is not one)."""
+    if isinstance(expr, And):
+        return tuple(part for arg in expr.args for part in conjuncts(arg))
+    return (expr,)
+
+
 def disjunction(args: list[Expr] | tuple[Expr, ...]) -> Expr:
     """`a || b || ...`, flattening nested disjunctions and dropping `false`."""
     flat: list[Expr] = []

@@ -20,7 +20,16 @@ import copy
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 
-from planner.expressions import TRUE, Assign, Expr, Value, conjunction, negation, variables_of
+from planner.expressions import (
+    TRUE,
+    Assign,
+    Expr,
+    Value,
+    conjunction,
+    conjuncts,
+    negation,
+    variables_of,
+)
 from planner.model import UNCONTROLLABLE, TransitionKind, VariableKind
 from planner.operation_planner import OperationPlanner
 from planner.partial_order import Block, blocks, independent_operations
@@ -99,7 +108,10 @@ class RunnerState:
     recovery: TransitionPlan | None = None  # forbidden-state recovery in progress
     relaxed: frozenset[str] = frozenset()
     rejected: set[str] = field(default_factory=set)  # recovery steps an operator rejected
-    instructions: tuple[str, ...] = ()  # maintenance steps asked of the operator
+    # after errors: the plan with maintenance transitions being followed, and the operation
+    # in error it was made for (seed 000 sec. 4.5)
+    maintenance: TransitionPlan | None = None
+    maintained: str = ""
     heard: dict[str, float] = field(default_factory=dict)
     unavailable: set[str] = field(default_factory=set)
     effect_since: dict[str, float] = field(default_factory=dict)
@@ -154,6 +166,11 @@ class Runner:
             i.name: compile_expr(i.precondition, index) for i in station.intentions
         }
         self.intention_goal = {i.name: compile_expr(i.goal, index) for i in station.intentions}
+        # each intention's goal as its conjuncts: how much of it a state satisfies
+        self.goal_parts = {
+            i.name: [compile_expr(part, index) for part in conjuncts(i.goal)]
+            for i in station.intentions
+        }
         self.operation_pre = {
             o.name: compile_expr(o.precondition, index) for o in station.operations
         }
@@ -232,9 +249,14 @@ class _Tick:
     # -- the tick, in the order of DESIGN.md section 4 -----------------------------------------
 
     def run(self, inputs: Inputs) -> None:
-        self.take_inputs(inputs)
-        for action in inputs.actions:
+        # maintenance work reported done happened before the measurements that show it
+        done = [a for a in inputs.actions if isinstance(a, MaintenanceDone)]
+        for action in done:
             self.act(action)
+        self.take_inputs(inputs)
+        for other in inputs.actions:
+            if not isinstance(other, MaintenanceDone):
+                self.act(other)
         self.automatic()
         if self.state.recovery is not None or self.violated():
             self.recover()
@@ -242,6 +264,7 @@ class _Tick:
             self.intentions()
             self.operations()
             self.transitions()
+            self.maintain()
         self.monitor_effects()
         if self.now >= self.state.next_recheck:
             self.recheck()
@@ -399,17 +422,14 @@ class _Tick:
         if not chosen.guard(state):
             self.emit("refused", name, user=who, why="its guard does not hold")
             return
-        after = self.r.semantics.values(chosen.apply(state))
-        for variable, value in after.items():  # measured values come from the devices
-            if variable not in self.r.measured:
-                s.values[variable] = value
+        # measured values included: the devices will report what the operator did (a robot
+        # moved by hand, a connector reset), and a disconnected one cannot
+        s.values = self.r.semantics.values(chosen.apply(state))
         self.emit("operator", "maintenance done", user=who, transition=name)
         if s.recovery is not None:
             self.mark_taken(s.recovery, name)
-        elif name in s.instructions:
-            rest = list(s.instructions)
-            rest.remove(name)
-            s.instructions = tuple(rest)
+        elif s.maintenance is not None:
+            self.mark_taken(s.maintenance, name)
 
     def pending_maintenance(self) -> list[str]:
         s = self.state
@@ -421,7 +441,10 @@ class _Tick:
                 and self.r.model.transition(s.recovery.blocks[k].transition).kind
                 is TransitionKind.MAINTENANCE
             ]
-        return list(s.instructions)
+        plan = s.maintenance
+        if plan is None:
+            return []
+        return [plan.blocks[k].transition for k in self.startable(plan) if k in plan.asked]
 
     def approve(self, action: Action, step: int) -> None:
         s = self.state
@@ -451,7 +474,7 @@ class _Tick:
         )
 
     def happened(self, name: str) -> None:
-        for plan in (self.state.transition_plan, self.state.recovery):
+        for plan in (self.state.transition_plan, self.state.recovery, self.state.maintenance):
             if plan is not None:
                 plan.happened(name)
 
@@ -616,25 +639,82 @@ class _Tick:
         """The decision state once the executing operations have finished."""
         values = dict(self.state.values)
         for name in self.state.goals:
+            if self.state.operations[name] != "e":
+                continue  # an operation in error keeps its goal for maintenance planning only
             values.update(assigned(self.r.operations[name].effects, self.state.values))
         return values
 
     def operation_plan_reaches(self, active: list[str]) -> bool:
+        """Simulate the rest of the operation plan: does it still reach the intentions' goals?
+
+        Repairs the plan in place where that needs no planning, so that robots moving about
+        (their positions are measured, and in the goals) do not make the planner thrash
+        between equally short plans: a step whose effects already hold is skipped, and when
+        only the end falls short, operations enabled there that satisfy more of the goal are
+        appended (a robot that moved needs parking again).  Only operations that change
+        measured variables alone are skipped or appended: a product that is not as planned
+        is a deviation the operation planner must see (E1).
+        """
         s = self.state
         plan = s.operation_plan
         if plan is None:
             return False
         values = self.predicted()
+        skipped = []
         for k, name in enumerate(plan.steps):
             if k in plan.started:
                 continue
             if s.operations[name] == "error":
                 return False
+            effects = assigned(self.r.operations[name].effects, values)
             if not self.r.operation_pre[name](self.r.as_state(values)):
+                if self.measures_only(name) and all(
+                    values[target] == value for target, value in effects.items()
+                ):
+                    skipped.append(k)
+                    continue
                 return False
-            values.update(assigned(self.r.operations[name].effects, values))
-        state = self.r.as_state(values)
-        return all(self.r.intention_goal[name](state) for name in active)
+            values.update(effects)
+        appended: list[str] = []
+        parts = [part for name in active for part in self.r.goal_parts[name]]
+        met = sum(part(self.r.as_state(values)) for part in parts)
+        while met < len(parts) and len(appended) < 4:
+            found = None
+            for name, operation in self.r.operations.items():
+                if (
+                    s.operations[name] == "error"
+                    or not self.measures_only(name)
+                    or not self.r.operation_pre[name](self.r.as_state(values))
+                ):
+                    continue
+                after = values | assigned(operation.effects, values)
+                state = self.r.as_state(after)
+                if sum(part(state) for part in parts) > met:
+                    found = (name, after, sum(part(state) for part in parts))
+                    break
+            if found is None:
+                return False
+            appended.append(found[0])
+            values, met = found[1], found[2]
+        if met < len(parts):
+            return False
+        for k in skipped:
+            plan.started.add(k)
+            plan.finished.add(k)
+        for name in appended:
+            plan.steps += (name,)
+            plan.after += (frozenset(range(len(plan.steps) - 1)),)
+        if skipped or appended:
+            self.emit(
+                "repaired",
+                "OP",
+                skipped=[plan.steps[k] for k in skipped],
+                appended=appended,
+            )
+        return True
+
+    def measures_only(self, operation: str) -> bool:
+        return all(a.target in self.r.measured for a in self.r.operations[operation].effects)
 
     def plan_operations(self, active: list[str], reason: str) -> None:
         s = self.state
@@ -748,12 +828,17 @@ class _Tick:
         return (negation(conjunction(kept)),) if kept else ()
 
     def query(self, goal: Expr, executing: Iterable[str], maintenance: bool = False) -> PlanQuery:
+        """A transition planning query from the current state.
+
+        Maintenance planning drops the monotonic abstraction: a person putting things right
+        (hanging back the tool a dead robot holds) changes what the operations estimate.
+        """
         return PlanQuery(
             self.r.as_state(self.state.values),
             goal,
             self.r.config.max_steps,
             maintenance=maintenance,
-            forbidden=self.forbidden(executing),
+            forbidden=() if maintenance else self.forbidden(executing),
             disabled=frozenset(self.disabled()),
         )
 
@@ -906,14 +991,48 @@ class _Tick:
                 if self.r.model.transition(step).kind is TransitionKind.MAINTENANCE
             )
             if result.found and steps:
-                s.instructions = steps
-                self.emit(
-                    "instruction",
-                    name,
-                    steps=list(steps),
-                    what=[self.describe(step) for step in steps],
-                )
+                # followed up to its last maintenance step; the rest is production again
+                last = max(k for k, step in enumerate(result.plan) if step in steps)
+                prefix = result.plan[: last + 1]
+                s.maintenance = TransitionPlan(goal, prefix, tuple(blocks(self.r.model, prefix)))
+                s.maintained = name
                 return
+
+    def maintain(self) -> None:
+        """Follow the maintenance plan: the runner takes its controlled steps (supervised),
+        and each maintenance step, once the steps before it are done, becomes an instruction
+        for the operator, who reports it done.  When all are done, the operation it was made
+        for is tried again (if it has retries left)."""
+        s = self.state
+        plan = s.maintenance
+        if plan is None:
+            return
+        if not any(st == "error" for st in s.intentions.values()):
+            s.maintenance = None
+            return
+        for k in self.startable(plan):
+            name = plan.blocks[k].transition
+            if self.r.model.transition(name).kind is TransitionKind.MAINTENANCE:
+                if k not in plan.asked:
+                    plan.asked.add(k)
+                    steps = [b.transition for b in plan.blocks]
+                    self.emit(
+                        "instruction",
+                        name,
+                        operation=s.maintained,
+                        step=steps.index(name) + 1,
+                        of=len(steps),
+                        what=self.describe(name),
+                    )
+            else:
+                self.take(plan, k, supervised=True)
+        if len(plan.done) < len(plan.blocks):
+            return
+        name, s.maintenance, s.maintained = s.maintained, None, ""
+        if s.operations[name] == "error" and s.failures.get(name, 0) < self.r.config.retries:
+            s.goals.pop(name, None)
+            self.set_operation(name, "i", "the maintenance it needed is done")
+            s.replan_operations = s.replan_operations or "cleared"
 
     # -- 7. effect monitoring ------------------------------------------------------------------
 
@@ -965,7 +1084,7 @@ class _Tick:
             )
             result, _ = self.timed(self.r.op.plan, query)
             if result.found:
-                s.instructions = ()
+                s.maintenance = None
                 self.set_intention(name, "e", "its goal can be reached again")
 
     # -- planning bookkeeping ------------------------------------------------------------------

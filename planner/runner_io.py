@@ -164,6 +164,7 @@ KINDS = (
     "intention",  # an intention changed state (i, e, f, error)
     "operation",  # an operation changed state (i, e, error)
     "plan",  # a planning action: level OP or TP, flags, reason, status
+    "repaired",  # the operation plan mended without planning: steps skipped or appended
     "instruction",  # maintenance steps for the operator
     "approval",  # a recovery step waits for an operator's approval
     "forbidden",  # the state violates specifications: recovery starts

@@ -9,7 +9,7 @@ sec. II-C), the restart abilities (seed 001 VIII-A), and the operations and inte
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import yaml
 
@@ -227,9 +227,7 @@ def read_station(reader: Reader, top: Fields) -> Station:
         for node in nodes:
             read = read_transition(reader, node, scope, by_name)
             if read is not None:
-                prefixed = Transition(
-                    prefix + read.name, read.kind, read.guard, read.actions, read.source
-                )
+                prefixed = replace(read, name=prefix + read.name)
                 transitions.append((prefixed, node))
                 own.append(prefixed.name)
         description = fields.get("description")
@@ -427,7 +425,7 @@ def _read_ability(
                 full = f"{resource}.{template}.{t.name}"
             else:
                 full = f"{resource}.{instance}.{t.name}"
-            result.append((Transition(full, t.kind, t.guard, t.actions, t.source), t_node))
+            result.append((replace(t, name=full), t_node))
         ability = Ability(
             resource,
             instance,
@@ -481,7 +479,7 @@ def _with_extras(
     actions = read_actions(
         reader, fields.get("actions"), scope, where, start.kind, variables, values
     )
-    return Transition(start.name, start.kind, guard, start.actions + (actions or ()), start.source)
+    return replace(start, guard=guard, actions=start.actions + (actions or ()))
 
 
 def _names_and_values(

@@ -79,7 +79,17 @@ def test_nominal_assembly_finishes_without_errors(demo: tuple[Station, Planners]
 
 @pytest.mark.parametrize(
     "name",
-    ["e1_bolt_undone", "e2_oil_filter_early", "e8_camera_miss", "e9_torque_not_reached"],
+    [
+        "e1_bolt_undone",
+        "e2_oil_filter_early",
+        "e3_lock_fails_on_attach",
+        "e4_lock_fails_on_release",
+        "e5_r2_disconnects_clear",
+        "e6_r2_disconnects_above_engine",
+        "e7_r2_disconnects_holding_tool",
+        "e8_camera_miss",
+        "e9_torque_not_reached",
+    ],
 )
 def test_table_1_experiment_recovers_as_in_the_paper(
     demo: tuple[Station, Planners], name: str
