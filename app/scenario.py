@@ -20,7 +20,22 @@ from planner.expressions import Expr, Value, parse_expr
 from planner.loading import scope_for
 from planner.operation_planner import OperationPlanner
 from planner.runner import Runner, RunnerState
-from planner.runner_io import Action, Approve, Event, Inputs, MaintenanceDone, RunnerConfig
+from planner.runner_io import (
+    Action,
+    Approve,
+    CancelIntention,
+    EnterRestart,
+    Event,
+    Inputs,
+    LeaveRestart,
+    MaintenanceDone,
+    ReenableEffect,
+    Reject,
+    ResetOperation,
+    RunnerConfig,
+    SetEstimated,
+    StartIntention,
+)
 from planner.station import Station
 from planner.transition_planner import TransitionPlanner
 
@@ -31,6 +46,7 @@ _KEYS = (
     "config",
     "delays",
     "faults",
+    "actions",
     "operator",
     "until",
     "expect",
@@ -44,6 +60,19 @@ _CONFIG_KEYS = (
     "max_steps",
 )
 _FAULT_KEYS = ("at", "when", "kind", "resource", "effect", "instead", "count", "values")
+# what people do at given times: (action, the keys it takes besides at/when/do/user)
+_ACTIONS: dict[str, tuple[type[Action], tuple[str, ...]]] = {
+    "start_intention": (StartIntention, ("name",)),
+    "cancel_intention": (CancelIntention, ("name",)),
+    "approve": (Approve, ("step",)),
+    "reject": (Reject, ("step",)),
+    "maintenance_done": (MaintenanceDone, ("transition",)),
+    "enter_restart": (EnterRestart, ("reason",)),
+    "leave_restart": (LeaveRestart, ()),
+    "set_estimated": (SetEstimated, ("variable", "value", "reason")),
+    "reset_operation": (ResetOperation, ("name",)),
+    "reenable_effect": (ReenableEffect, ("name",)),
+}
 
 
 class ScenarioError(Exception):
@@ -59,6 +88,13 @@ class ScheduledFault:
 
 
 @dataclass(frozen=True)
+class ScheduledAction:
+    action: Action
+    at: float | None = None
+    when: Expr | None = None
+
+
+@dataclass(frozen=True)
 class Scenario:
     file: str
     description: str = ""
@@ -68,6 +104,7 @@ class Scenario:
     delays: Mapping[str, float] = field(default_factory=dict)
     default_delay: float = 1.0
     faults: tuple[ScheduledFault, ...] = ()
+    actions: tuple[ScheduledAction, ...] = ()
     operator_delay: float = 2.0
     approve: bool = True
     maintenance: bool = True
@@ -148,6 +185,10 @@ def load_scenario(text: str, file: str, station: Station) -> Scenario:
         text = ", ".join(f"{key}={entry[key]}" for key in _FAULT_KEYS[2:] if key in entry)
         at = float(entry["at"]) if "at" in entry else None
         faults.append(ScheduledFault(fault, at, when, text))
+    actions = tuple(
+        _read_action(f"{file}: actions[{k}]", entry, scope)
+        for k, entry in enumerate(data.get("actions") or [])
+    )
     operator = data.get("operator") or {}
     return Scenario(
         file=file,
@@ -158,12 +199,37 @@ def load_scenario(text: str, file: str, station: Station) -> Scenario:
         delays=delays,
         default_delay=default_delay,
         faults=tuple(faults),
+        actions=actions,
         operator_delay=float(operator.get("delay", 2.0)),
         approve=bool(operator.get("approve", True)),
         maintenance=bool(operator.get("maintenance", True)),
         until=float(data.get("until", 900.0)),
         expect=data.get("expect") or {},
     )
+
+
+def _read_action(where: str, entry: Any, scope: Any) -> ScheduledAction:
+    if not isinstance(entry, dict):
+        raise ScenarioError(f"{where}: an action is a mapping with keys at/when, do, ...")
+    do = entry.get("do")
+    if do not in _ACTIONS:
+        raise ScenarioError(f"{where}: do must be one of {', '.join(_ACTIONS)}, not {do!r}")
+    kind, keys = _ACTIONS[do]
+    _known(where, "action", entry, ("at", "when", "do", "user", *keys))
+    when = None
+    if "when" in entry:
+        try:
+            when = parse_expr(str(entry["when"]), scope)
+        except Exception as exc:  # the expression parser's own located message
+            raise ScenarioError(f"{where}: when: {exc}") from None
+    if "at" not in entry and when is None:
+        raise ScenarioError(f"{where}: give 'at' (seconds) or 'when' (a condition)")
+    missing = [key for key in keys if key not in entry and key != "reason"]
+    if missing:
+        raise ScenarioError(f"{where}: {do} needs {', '.join(missing)}")
+    arguments = {key: entry[key] for key in keys if key in entry}
+    action = kind(user=str(entry.get("user", "engineer")), **arguments)
+    return ScheduledAction(action, float(entry["at"]) if "at" in entry else None, when)
 
 
 def _known(where: str, what: str, data: Mapping[str, Any], keys: tuple[str, ...]) -> None:
@@ -202,6 +268,7 @@ def play(
     now = 0.0
     state: RunnerState = runner.initial(now, scenario.start)
     pending = list(scenario.faults)
+    scheduled_actions = list(scenario.actions)
     answers: list[tuple[float, Action]] = []  # the simulated operator's actions, when due
     published: dict[str, Value] = dict(state.values)
     while now <= scenario.until:
@@ -214,6 +281,15 @@ def play(
                 world.inject(scheduled.fault)
                 yield Event(now, "fault", scheduled.fault.kind, {"fault": scheduled.text})
         world.advance(published, now)
+        for scheduled_action in list(scheduled_actions):
+            due = scheduled_action.at is not None and now >= scheduled_action.at
+            if scheduled_action.when is not None and runner.holds(
+                scheduled_action.when, state.values
+            ):
+                due = True
+            if due:
+                scheduled_actions.remove(scheduled_action)
+                answers.append((now, scheduled_action.action))
         actions = tuple(a for t, a in answers if t <= now)
         answers = [(t, a) for t, a in answers if t > now]
         for action in actions:

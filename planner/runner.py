@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import copy
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from planner.expressions import (
     TRUE,
@@ -117,6 +117,8 @@ class RunnerState:
     effect_since: dict[str, float] = field(default_factory=dict)
     timed_out: set[str] = field(default_factory=set)
     restart: bool = False
+    # restart mode: operations being reset, with the goal of reaching their precondition
+    resets: dict[str, Expr] = field(default_factory=dict)
     armed: set[str] = field(default_factory=set)  # intentions allowed to start by themselves
     next_recheck: float = 0.0
     replan_operations: str = ""  # why the operation plan must be made again ("" if not)
@@ -358,6 +360,9 @@ class _Tick:
                 s.replan_transitions = s.replan_transitions or "restart"
             case LeaveRestart():
                 s.restart = False
+                for name in sorted(s.resets):
+                    self.emit("reset", name, done=False, why="restart mode left before it")
+                s.resets.clear()
                 self.emit("restart", "left", user=who)
                 s.replan_operations = s.replan_operations or "restart"
                 s.replan_transitions = s.replan_transitions or "restart"
@@ -367,12 +372,18 @@ class _Tick:
                 if name not in s.operations:
                     self.emit("refused", name, user=who, why="there is no such operation")
                     return
+                if not s.restart:
+                    self.emit("refused", name, user=who, why="operations are reset in restart mode")
+                    return
                 s.failures.pop(name, None)
                 s.goals.pop(name, None)
+                self.unstart(name)
                 if s.operations[name] != "i":
                     self.set_operation(name, "i", "reset by " + who)
                 s.replan_operations = s.replan_operations or "reset"
                 self.emit("operator", "reset operation", user=who, operation=name)
+                # seed 001 VIII-A: plan to reach its precondition, to start it again
+                s.resets[name] = self.r.operations[name].precondition
             case ReenableEffect(name=name):
                 if name not in s.timed_out:
                     self.emit("refused", name, user=who, why="the effect is not timed out")
@@ -768,8 +779,19 @@ class _Tick:
 
     # -- 6. transitions ------------------------------------------------------------------------
 
+    def unstart(self, name: str) -> None:
+        """The operation plan may start `name` again."""
+        plan = self.state.operation_plan
+        if plan is not None:
+            for k in sorted(plan.started - plan.finished):
+                if plan.steps[k] == name:
+                    plan.started.discard(k)
+
     def transitions(self) -> None:
         s = self.state
+        if s.restart:
+            self.reset_transitions()
+            return
         executing = [n for n in s.goals if s.operations[n] == "e"]
         if not executing:
             s.transition_plan = None
@@ -816,14 +838,18 @@ class _Tick:
     def forbidden(self, executing: Iterable[str]) -> tuple[Expr, ...]:
         """Monotonic abstraction (seed 000 sec. 4.3): the transition planner may change no
         decision variable but those the executing operations' effects change."""
-        s = self.state
         written: set[str] = set()
         for name in executing:
             written |= {a.target for a in self.r.operations[name].effects}
+        return self.kept(set(self.r.decisions) - written)
+
+    def kept(self, names: set[str]) -> tuple[Expr, ...]:
+        """A forbidden predicate: any of `names` changed from its current value."""
+        s = self.state
         kept = [
             effect_as_goal(Assign(name, value=s.values[name]), s.values)
             for name in self.r.decisions
-            if name not in written
+            if name in names
         ]
         return (negation(conjunction(kept)),) if kept else ()
 
@@ -865,13 +891,39 @@ class _Tick:
                 "its goal cannot be reached"
                 + (f" ({s.failures[name]} failures)" if s.failures[name] > 1 else ""),
             )
-            plan = s.operation_plan
-            if plan is not None:
-                for k in sorted(plan.started - plan.finished):
-                    if plan.steps[k] == name:
-                        plan.started.discard(k)
+            self.unstart(name)
         s.replan_operations = "error"
         return False
+
+    def reset_transitions(self) -> None:
+        """Restart mode: executing operations are paused; plan and take transitions (restart
+        abilities included) that bring the operations being reset to their preconditions."""
+        s = self.state
+        for name in sorted(s.resets):
+            if self.r.holds(s.resets[name], s.values):
+                del s.resets[name]
+                self.emit("reset", name, done=True, why="its precondition holds")
+        if not s.resets:
+            s.transition_plan = None
+            return
+        goal = conjunction([s.resets[n] for n in sorted(s.resets)])
+        plan = s.transition_plan
+        if plan is None or plan.goal != goal or not self.plan_reaches(plan):
+            written = {v for n in s.resets for v in variables_of(s.resets[n])}
+            query = replace(
+                self.query(goal, []), forbidden=self.kept(set(self.r.decisions) - written)
+            )
+            result, millis = self.timed(self.r.tp.plan, query)
+            self.emit_plan("TP", self.flags(), "reset", result, millis)
+            if not result.found:
+                for name in sorted(s.resets):
+                    self.emit("reset", name, done=False, why="no plan reaches its precondition")
+                s.resets.clear()
+                s.transition_plan = None
+                return
+            s.transition_plan = plan = self.follow(goal, result)
+        for k in self.startable(plan):
+            self.take(plan, k, supervised=True)
 
     def follow(self, goal: Expr, result: PlanResult) -> TransitionPlan:
         plan = TransitionPlan(goal, result.plan, tuple(blocks(self.r.model, result.plan)))

@@ -172,5 +172,6 @@ KINDS = (
     "operator",  # an operator's or engineer's action, accepted
     "refused",  # an action that cannot be taken now, and why
     "restart",  # restart mode entered or left
+    "reset",  # an operation reset in restart mode reached its precondition (done) or not
     "error",  # anything else that needs a person (e.g. an automatic cycle)
 )

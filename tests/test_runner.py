@@ -2,16 +2,39 @@
 
 from __future__ import annotations
 
+from dataclasses import replace as replace_dataclass
 from pathlib import Path
+from typing import Any
 
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
-from app.scenario import Planners, Scenario, ScenarioError, load_scenario, play
+from app.scenario import (
+    Planners,
+    Scenario,
+    ScenarioError,
+    ScheduledFault,
+    load_scenario,
+    play,
+)
+from hw.sim import Fault
+from planner.expressions import Value, format_expr
 from planner.operation_planner import OperationPlanner
-from planner.runner import RunnerState
-from planner.runner_io import Event
+from planner.runner import Runner, RunnerState, _Tick
+from planner.runner_io import (
+    Action,
+    EnterRestart,
+    Event,
+    Inputs,
+    LeaveRestart,
+    ResetOperation,
+    RunnerConfig,
+    SetEstimated,
+)
 from planner.station import Station, load_station
 from planner.transition_planner import TransitionPlanner
+from tests.oracle import OracleModel, parse_model, state_from_dict
 
 ROOT = Path(__file__).resolve().parent.parent
 MODEL = ROOT / "models" / "demo_station.yaml"
@@ -143,3 +166,247 @@ def test_bad_scenarios_are_reported_with_file_and_entry(demo: tuple[Station, Pla
         with pytest.raises(ScenarioError, match=r"bad\.yaml") as caught:
             load_scenario(text, "bad.yaml", station)
         assert message in str(caught.value)
+
+
+# -- restart mode (seed 001 VIII-A) ------------------------------------------------------------
+
+
+def test_restart_mode_resets_an_operation_with_a_restart_ability(
+    demo: tuple[Station, Planners],
+) -> None:
+    _, events, states = run(demo, "restart_robot_pushed")
+    assert events[-1].kind == "done", [str(e) for e in events[-30:]]
+    subjects = [(e.kind, e.subject) for e in events]
+    entered = subjects.index(("restart", "entered"))
+    left = subjects.index(("restart", "left"))
+    reset = next(e for e in events if e.kind == "reset")
+    assert reset.subject == "get_nr_r1" and reset.detail["done"] is True
+    assert entered < events.index(reset) < left
+    during = events[entered:left]
+    # the restart ability was used, and only in restart mode
+    assert ("taken", "r1.move_to_previous") in [(e.kind, e.subject) for e in during]
+    assert ("taken", "r1.move_to_previous") not in subjects[:entered] + subjects[left:]
+    # automatic starts are paused: no operation or intention started in restart mode
+    started = [
+        e
+        for e in during
+        if e.kind in ("operation", "intention")
+        and (e.detail["before"], e.detail["after"]) == ("i", "e")
+    ]
+    assert not started, started
+    # when the reset was reported done, the operation's precondition held
+    station, planners = demo
+    runner = Runner(station, planners.transition, planners.operation)
+    at_reset = states[round(reset.time / 0.1)]  # one state per 0.1 s tick, from 0
+    assert runner.holds(station.operation("get_nr_r1").precondition, at_reset.values)
+
+
+def tick(
+    demo: tuple[Station, Planners], state: RunnerState | None, *actions: Action, now: float = 0.0
+) -> tuple[RunnerState, list[Event]]:
+    station, planners = demo
+    config = RunnerConfig(auto_intentions=frozenset({"tighten_bolts"}))
+    runner = Runner(station, planners.transition, planners.operation, config)
+    state = state if state is not None else runner.initial(now)
+    everyone = frozenset(r.name for r in station.resources)
+    state, _, events = runner.tick(state, Inputs(heartbeats=everyone, actions=actions), now)
+    return state, events
+
+
+def test_estimated_values_and_resets_only_in_restart_mode_with_a_reason(
+    demo: tuple[Station, Planners],
+) -> None:
+    fix = SetEstimated(user="eve", variable="frame.state", value="on_engine", reason="it is on")
+    state, events = tick(demo, None, fix, ResetOperation(user="eve", name="get_nr_r1"))
+    refused = [e for e in events if e.kind == "refused"]
+    assert [e.detail["why"] for e in refused] == [
+        "estimated variables are set in restart mode",
+        "operations are reset in restart mode",
+    ]
+    assert state.values["frame.state"] == "on_mir"
+
+    state, events = tick(demo, state, EnterRestart(user="eve", reason="tracker lost"), now=0.1)
+    assert ("restart", "entered") in [(e.kind, e.subject) for e in events]
+    no_reason = SetEstimated(user="eve", variable="frame.state", value="on_engine", reason=" ")
+    outside = SetEstimated(user="eve", variable="frame.state", value="loose", reason="x")
+    measured = SetEstimated(user="eve", variable="r1.pos", value="home", reason="x")
+    state, events = tick(demo, state, no_reason, outside, measured, now=0.2)
+    assert [e.detail["why"] for e in events if e.kind == "refused"] == [
+        "a reason is required",
+        "'loose' is outside the domain",
+        "'r1.pos' is measured, not estimated",
+    ]
+    state, events = tick(demo, state, fix, now=0.3)
+    changed = next(e for e in events if e.subject == "set estimated")
+    assert changed.detail == {
+        "user": "eve",
+        "variable": "frame.state",
+        "before": "on_mir",
+        "after": "on_engine",
+        "reason": "it is on",
+    }
+    assert state.values["frame.state"] == "on_engine"
+    # in restart mode no intention starts by itself, though tighten_bolts now could
+    assert state.intentions["tighten_bolts"] == "i"
+    state, events = tick(demo, state, LeaveRestart(user="eve"), now=0.4)
+    started = [e for e in events if e.kind == "intention" and e.detail["after"] == "e"]
+    assert [e.subject for e in started] == ["tighten_bolts"]
+
+
+# -- automatic cycles --------------------------------------------------------------------------
+
+BLINKER = """
+station: blinker
+resources:
+  - name: lamp
+    variables:
+      - {name: on, domain: bool, initial: false, kind: decision}
+      - {name: armed, domain: bool, initial: false, kind: command}
+    transitions:
+      - {name: arm, guard: "!armed", actions: ["armed := true"]}
+      - {name: light, kind: automatic, guard: "armed && !on", actions: ["on := true"]}
+      - {name: dim, kind: automatic, guard: "armed && on", actions: ["on := false"]}
+"""
+
+
+def test_an_automatic_cycle_is_reported_and_halted_not_looped() -> None:
+    """Loading rejects such models (test_loading); this is the runner's own last guard, for a
+    runner handed planners built without the cycle (a stale cached supervisor, say)."""
+    station = load_station(BLINKER, "blinker.yaml")
+    without = load_station(BLINKER.replace("- {name: dim", "# "), "blinker.yaml")
+    runner = Runner(
+        station,
+        TransitionPlanner(without.model),
+        OperationPlanner(without),
+        RunnerConfig(max_automatic_steps=50),
+    )
+    state = runner.initial(0.0, {"lamp.armed": True})
+    state, _, events = runner.tick(state, Inputs(heartbeats=frozenset({"lamp"})), 0.1)
+    errors = [e for e in events if e.kind == "error"]
+    assert [e.subject for e in errors] == ["automatic cycle"]
+    assert len([e for e in events if e.kind == "taken"]) == 50
+    assert state.halted
+    state, _, events = runner.tick(state, Inputs(heartbeats=frozenset({"lamp"})), 0.2)
+    assert not [e for e in events if e.kind == "taken"]  # halted: nothing more is taken
+
+
+# -- safety under random faults ----------------------------------------------------------------
+
+FAULTS = [
+    Fault("disconnect", resource="r1"),
+    Fault("disconnect", resource="r2"),
+    Fault("disconnect", resource="nr"),
+    Fault("block_effect", effect="r1_tc.lock.connect"),
+    Fault("block_effect", effect="r2_tc.lock.connect"),
+    Fault("block_effect", effect="r1_tc.unlock.release"),
+    Fault("block_effect", effect="r1.goto.arrive"),
+    Fault("block_effect", effect="nr.run_nut.spin_up"),
+    Fault("replace_effect", effect="r1_cam.locate_tool.found", instead="r1_cam.locate_tool.miss"),
+    Fault("replace_effect", effect="nr.run_nut.torque", instead="nr.run_nut.torque_nok", count=2),
+]
+UNDO = {"disconnect": "reconnect", "block_effect": "unblock_effect"}
+
+
+@st.composite
+def fault_schedules(draw: st.DrawFn) -> tuple[ScheduledFault, ...]:
+    """1-3 device faults at random times, each undone (reconnected, unblocked) or not."""
+    schedule = []
+    chosen = draw(
+        st.lists(st.sampled_from(range(len(FAULTS))), min_size=1, max_size=3, unique=True)
+    )
+    for fault in (FAULTS[k] for k in chosen):
+        at = draw(st.integers(0, 40)) / 2
+        schedule.append(ScheduledFault(fault, at=at, text=str(fault)))
+        if fault.kind in UNDO and draw(st.booleans()):
+            undo = Fault(UNDO[fault.kind], resource=fault.resource, effect=fault.effect)
+            schedule.append(ScheduledFault(undo, at=at + draw(st.integers(1, 20)) / 2))
+    return tuple(schedule)
+
+
+@settings(
+    max_examples=12,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
+)
+@given(
+    schedule=fault_schedules(),
+    delays=st.fixed_dictionaries(
+        {
+            r: st.sampled_from([0.3, 0.7, 1.0, 1.6, 2.5])
+            for r in ("r1", "r2", "r1_tc", "r2_tc", "nr")
+        }
+    ),
+)
+def test_no_runner_step_enters_a_forbidden_state_under_random_faults(
+    demo: tuple[Station, Planners],
+    schedule: tuple[ScheduledFault, ...],
+    delays: dict[str, float],
+) -> None:
+    """Device faults never put the world in a forbidden state by themselves, so every state
+    the runner reaches, after each step it takes, must satisfy every specification, judged by
+    the independent oracle's reading of section 8, and must not be bad for the supervisor."""
+    station, planners = demo
+    oracle = _oracle_specifications(station)
+    path = SCENARIOS / "e3_lock_fails_on_attach.yaml"
+    base = load_scenario(path.read_text(), str(path), station)
+    scenario = replace_dataclass(
+        base,
+        faults=schedule,
+        delays={**base.delays, **delays},
+        until=90.0,
+        config=RunnerConfig(
+            auto_intentions=base.config.auto_intentions,
+            effect_timeout=4.0,
+            heartbeat_timeout=1.0,
+        ),
+    )
+    steps: list[dict[str, Value]] = []
+    original = _Tick.take, _Tick.automatic
+
+    def take(self: _Tick, *args: Any, **kwargs: Any) -> None:
+        original[0](self, *args, **kwargs)
+        steps.append(dict(self.state.values))
+
+    def automatic(self: _Tick) -> None:
+        original[1](self)
+        steps.append(dict(self.state.values))
+
+    states: list[RunnerState] = []
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(_Tick, "take", take)
+        patch.setattr(_Tick, "automatic", automatic)
+        events = list(play(station, scenario, planners, watch=states.append))
+    assert steps and events
+    tp = planners.transition
+    for values in steps + [s.values for s in states]:
+        state = tuple(values[v.name] for v in station.model.variables)
+        broken = [
+            spec.name for spec in oracle.specs if not spec.holds(oracle_state(oracle, values))
+        ]
+        assert not broken, (broken, values)
+        assert not tp.sym.contains(tp.bad, state), values
+    assert not [e for e in events if e.kind == "forbidden"]
+
+
+def _oracle_specifications(station: Station) -> OracleModel:
+    flat = {
+        "variables": [
+            {
+                "name": v.name,
+                "domain": "bool" if v.domain == (False, True) else list(v.domain),
+                "initial": v.initial,
+                "kind": v.kind.value,
+            }
+            for v in station.model.variables
+        ],
+        "specifications": [
+            {"name": s.name, "invariant": format_expr(s.invariant)}
+            for s in station.model.specifications
+        ],
+    }
+    return parse_model(flat)
+
+
+def oracle_state(oracle: OracleModel, values: dict[str, Value]) -> tuple[object, ...]:
+    return state_from_dict(oracle, dict(values))
