@@ -16,9 +16,9 @@ transitions back to a good state, each of whose steps waits for an operator's ap
 
 from __future__ import annotations
 
-import copy
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field, replace
+from typing import TypeVar
 
 from planner.expressions import (
     TRUE,
@@ -78,6 +78,15 @@ class TransitionPlan:
         self.taken.add(k)
         self.remaining[k] = list(self.blocks[k].steps[1:])
 
+    def copy(self) -> TransitionPlan:
+        return replace(
+            self,
+            taken=set(self.taken),
+            remaining={k: list(v) for k, v in self.remaining.items()},
+            approved=set(self.approved),
+            asked=set(self.asked),
+        )
+
     def happened(self, name: str) -> None:
         """An effect or automatic step happened: it completes the earliest block expecting it."""
         for k in sorted(self.remaining):
@@ -92,6 +101,9 @@ class OperationPlan:
     after: tuple[frozenset[int], ...]
     started: set[int] = field(default_factory=set)
     finished: set[int] = field(default_factory=set)
+
+    def copy(self) -> OperationPlan:
+        return replace(self, started=set(self.started), finished=set(self.finished))
 
 
 @dataclass
@@ -124,6 +136,36 @@ class RunnerState:
     replan_operations: str = ""  # why the operation plan must be made again ("" if not)
     replan_transitions: str = ""
     halted: str = ""  # a model error stopped automatic steps
+
+    def copy(self) -> RunnerState:
+        """A copy a tick may change without touching this one (expressions, tuples and
+        values are immutable and shared; a deepcopy cost more than the rest of a tick)."""
+        return replace(
+            self,
+            values=dict(self.values),
+            intentions=dict(self.intentions),
+            operations=dict(self.operations),
+            goals=dict(self.goals),
+            failures=dict(self.failures),
+            operation_plan=_copied(self.operation_plan),
+            transition_plan=_copied(self.transition_plan),
+            recovery=_copied(self.recovery),
+            rejected=set(self.rejected),
+            maintenance=_copied(self.maintenance),
+            heard=dict(self.heard),
+            unavailable=set(self.unavailable),
+            effect_since=dict(self.effect_since),
+            timed_out=set(self.timed_out),
+            resets=dict(self.resets),
+            armed=set(self.armed),
+        )
+
+
+_Plan = TypeVar("_Plan", TransitionPlan, OperationPlan)
+
+
+def _copied(plan: _Plan | None) -> _Plan | None:
+    return None if plan is None else plan.copy()
 
 
 def assigned(actions: Iterable[Assign], values: Mapping[str, Value]) -> dict[str, Value]:
@@ -208,7 +250,7 @@ class Runner:
     def tick(
         self, state: RunnerState, inputs: Inputs, now: float
     ) -> tuple[RunnerState, dict[str, Value], list[Event]]:
-        work = _Tick(self, copy.deepcopy(state), now)
+        work = _Tick(self, state.copy(), now)
         work.run(inputs)
         commands = {
             name: value

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 from dataclasses import replace as replace_dataclass
 from pathlib import Path
 from typing import Any
@@ -410,3 +411,19 @@ def _oracle_specifications(station: Station) -> OracleModel:
 
 def oracle_state(oracle: OracleModel, values: dict[str, Value]) -> tuple[object, ...]:
     return state_from_dict(oracle, dict(values))
+
+
+def test_a_tick_leaves_the_state_it_was_given_unchanged(demo: tuple[Station, Planners]) -> None:
+    """Ticks copy the state cheaply (not deeply); nothing they change may leak back."""
+    station, planners = demo
+    runner = Runner(station, planners.transition, planners.operation)
+    everyone = frozenset(r.name for r in station.resources)
+    state = runner.initial(0.0)
+    for k in range(1, 30):  # into the middle of a plan: intentions, operations, plans live
+        state, _, _ = runner.tick(state, Inputs(heartbeats=everyone), k / 10)
+    assert state.operation_plan is not None and state.transition_plan is not None
+    before = copy.deepcopy(state)
+    inputs = Inputs(measured={"r1.pos": "scan", "r1.last": "scan"}, heartbeats=everyone)
+    first = runner.tick(state, inputs, 3.0)
+    assert state == before
+    assert runner.tick(state, inputs, 3.0)[0] == first[0]
