@@ -136,6 +136,7 @@ class RunnerState:
     replan_operations: str = ""  # why the operation plan must be made again ("" if not)
     replan_transitions: str = ""
     halted: str = ""  # a model error stopped automatic steps
+    watched: bool = False  # every effect has been looked at once (then only changed ones)
 
     def copy(self) -> RunnerState:
         """A copy a tick may change without touching this one (expressions, tuples and
@@ -201,6 +202,16 @@ class Runner:
         self.measured = {v.name for v in self.model.variables if v.kind is VariableKind.MEASURED}
         self.decisions = [v.name for v in self.model.variables if v.kind is VariableKind.DECISION]
         self.effects = [c for c in self.semantics.transitions if c.kind is TransitionKind.EFFECT]
+        self.effect_index = {e.name: k for k, e in enumerate(self.effects)}
+        # which effects a changed variable concerns: those whose guard reads it (to watch
+        # them for time-outs) and those that write it (to explain a measured change)
+        self.effects_reading: dict[str, list[int]] = {}
+        self.effects_writing: dict[str, list[int]] = {}
+        for k, effect in enumerate(self.effects):
+            for name in variables_of(effect.transition.guard):
+                self.effects_reading.setdefault(name, []).append(k)
+            for action in effect.transition.actions:
+                self.effects_writing.setdefault(action.target, []).append(k)
         self.owner: dict[str, str] = {}
         for resource in station.resources:
             for name in resource.transitions:
@@ -250,7 +261,7 @@ class Runner:
     def tick(
         self, state: RunnerState, inputs: Inputs, now: float
     ) -> tuple[RunnerState, dict[str, Value], list[Event]]:
-        work = _Tick(self, state.copy(), now)
+        work = _Tick(self, state.copy(), now, state.values)
         work.run(inputs)
         commands = {
             name: value
@@ -281,11 +292,16 @@ class Runner:
 class _Tick:
     """One tick's work on a private copy of the state."""
 
-    def __init__(self, runner: Runner, state: RunnerState, now: float) -> None:
+    def __init__(
+        self, runner: Runner, state: RunnerState, now: float, previous: Mapping[str, Value]
+    ) -> None:
         self.r = runner
         self.state = state
         self.now = now
+        self.previous = previous  # the values at the start of the tick
         self.events: list[Event] = []
+        self.availability_changed: set[str] = set()
+        self.look_again: set[str] = set()  # effects an action re-enabled
 
     def emit(self, kind: str, subject: str, millis: float | None = None, **detail: object) -> None:
         self.events.append(Event(self.now, kind, subject, detail, millis))
@@ -322,12 +338,14 @@ class _Tick:
             s.heard[resource] = self.now
             if resource in s.unavailable:
                 s.unavailable.discard(resource)
+                self.availability_changed.add(resource)
                 self.emit("available", resource)
                 s.replan_transitions = s.replan_transitions or "availability"
         for resource, heard in sorted(s.heard.items()):
             late = self.now - heard > self.r.config.heartbeat_timeout
             if late and resource not in s.unavailable:
                 s.unavailable.add(resource)
+                self.availability_changed.add(resource)
                 self.emit("unavailable", resource, silent_for=round(self.now - heard, 3))
                 s.replan_transitions = s.replan_transitions or "availability"
         changed = {
@@ -350,7 +368,8 @@ class _Tick:
         while remaining and progress:
             progress = False
             state = self.r.as_state(s.values)
-            for effect in self.r.effects:
+            candidates = sorted({k for n in remaining for k in self.r.effects_writing.get(n, ())})
+            for effect in (self.r.effects[k] for k in candidates):
                 targets = {a.target: a for a in effect.transition.actions}
                 if not targets.keys() & remaining.keys() or not effect.guard(state):
                     continue
@@ -432,6 +451,7 @@ class _Tick:
                     return
                 s.timed_out.discard(name)
                 s.effect_since.pop(name, None)
+                self.look_again.add(name)
                 self.emit("reenabled", name, user=who)
                 s.replan_transitions = s.replan_transitions or "reenabled"
 
@@ -1019,6 +1039,10 @@ class _Tick:
             {k: list(v) for k, v in plan.remaining.items()},
         )
         expected = set(plan.steps)
+        planned_effects = [
+            self.r.effects[k]
+            for k in sorted(self.r.effect_index[n] for n in expected if n in self.r.effect_index)
+        ]
         disabled = self.disabled()
         for _ in range(2 * len(plan.steps) + 2):
             if goal(state):
@@ -1042,9 +1066,8 @@ class _Tick:
             effect = next(
                 (
                     e
-                    for e in self.r.effects
-                    if e.name in expected
-                    and e.name not in disabled
+                    for e in planned_effects
+                    if e.name not in disabled
                     and e.guard(state)
                     and (e.name in waiting or not waiting)
                 ),
@@ -1052,11 +1075,7 @@ class _Tick:
             )
             if effect is None:
                 effect = next(
-                    (
-                        e
-                        for e in self.r.effects
-                        if e.name in expected and e.name not in disabled and e.guard(state)
-                    ),
+                    (e for e in planned_effects if e.name not in disabled and e.guard(state)),
                     None,
                 )
             if effect is None:
@@ -1131,9 +1150,27 @@ class _Tick:
     # -- 7. effect monitoring ------------------------------------------------------------------
 
     def monitor_effects(self) -> None:
+        """Watch enabled effects for time-outs.  Only effects whose guard reads a variable
+        changed in this tick, or whose resource came or went, can have become enabled or
+        disabled; the enabled and timed-out ones are looked at every tick."""
         s = self.state
         state = self.r.as_state(s.values)
-        for effect in self.r.effects:
+        if s.watched:
+            changed = [n for n, v in s.values.items() if self.previous.get(n) != v]
+            look = {k for n in changed for k in self.r.effects_reading.get(n, ())}
+            look |= {self.r.effect_index[n] for n in s.effect_since}
+            look |= {self.r.effect_index[n] for n in s.timed_out | self.look_again}
+            for resource in self.availability_changed:
+                look |= {
+                    self.r.effect_index[n]
+                    for n in self.r.resource_transitions.get(resource, ())
+                    if n in self.r.effect_index
+                }
+            effects = [self.r.effects[k] for k in sorted(look)]
+        else:
+            effects = self.r.effects
+            s.watched = True
+        for effect in effects:
             name = effect.name
             owner = self.r.owner.get(name)
             enabled = effect.guard(state) and owner not in s.unavailable
