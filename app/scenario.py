@@ -112,84 +112,169 @@ class Scenario:
     expect: Mapping[str, Any] = field(default_factory=dict)
 
 
+Path = tuple[str | int, ...]
+
+
+class _Problem(Exception):
+    """A problem at a place in the scenario (a path of keys and indexes)."""
+
+    def __init__(self, path: Path, text: str) -> None:
+        super().__init__(text)
+        self.path = path
+        self.text = text
+
+
 def load_scenario(text: str, file: str, station: Station) -> Scenario:
+    """Read a scenario; a problem is reported as `file:line:column: entry: what is wrong`."""
     try:
+        root = yaml.compose(text)
         data = yaml.safe_load(text) or {}
     except yaml.YAMLError as exc:
-        raise ScenarioError(f"{file}: not valid YAML: {exc}") from None
+        mark = getattr(exc, "problem_mark", None)
+        where = f"{file}:{mark.line + 1}:{mark.column + 1}" if mark is not None else file
+        problem = getattr(exc, "problem", None) or str(exc)
+        raise ScenarioError(f"{where}: not valid YAML: {problem}") from None
+    try:
+        return _read(data, file, station)
+    except _Problem as problem:
+        line, column = _locate(root, problem.path)
+        entry = "".join(
+            f"[{p}]" if isinstance(p, int) or "." in p else f".{p}" for p in problem.path
+        )
+        raise ScenarioError(
+            f"{file}:{line}:{column}: {entry.lstrip('.') or 'scenario'}: {problem.text}"
+        ) from None
+
+
+def _locate(node: yaml.Node | None, path: Path) -> tuple[int, int]:
+    """Line and column (1-based) of the deepest node along `path` that exists."""
+    if node is None:
+        return 1, 1
+    for step in path:
+        child = None
+        if isinstance(node, yaml.MappingNode):
+            for key, value in node.value:
+                if key.value == step:
+                    child = value
+                    break
+        elif isinstance(node, yaml.SequenceNode) and isinstance(step, int) and step >= 0:
+            child = node.value[step] if step < len(node.value) else None
+        if child is None:
+            break
+        node = child
+    return node.start_mark.line + 1, node.start_mark.column + 1
+
+
+def _number(value: Any, path: Path, *, integer: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise _Problem(path, f"{value!r} is not a number")
+    if integer and not isinstance(value, int):
+        raise _Problem(path, f"{value!r} is not a whole number")
+    if value < 0:
+        raise _Problem(path, f"{value!r} is negative")
+    return value
+
+
+def _mapping(value: Any, path: Path, what: str) -> dict[str, Any]:
+    if value is None:
+        return {}
+    if not isinstance(value, dict):
+        raise _Problem(path, f"{what} must be a mapping")
+    return value
+
+
+def _sequence(value: Any, path: Path, what: str) -> list[Any]:
+    if value is None:
+        return []
+    if not isinstance(value, list):
+        raise _Problem(path, f"{what} must be a list")
+    return value
+
+
+def _read(data: Any, file: str, station: Station) -> Scenario:
     if not isinstance(data, dict):
-        raise ScenarioError(f"{file}: a scenario is a mapping with keys {', '.join(_KEYS)}")
-    _known(file, "scenario", data, _KEYS)
+        raise _Problem((), f"a scenario is a mapping with keys {', '.join(_KEYS)}")
+    _known((), "scenario", data, _KEYS)
     model = station.model
     start: dict[str, Value] = {}
-    for name, value in (data.get("start") or {}).items():
+    for name, value in _mapping(data.get("start"), ("start",), "start").items():
         if name not in model.variable_index:
-            raise ScenarioError(f"{file}: start: unknown variable '{name}'")
+            raise _Problem(("start", name), f"unknown variable '{name}'")
         domain = model.variable(name)
         if value not in domain.domain:
-            raise ScenarioError(
-                f"{file}: start: {name}: {value!r} is not in {domain.describe_domain()}"
-            )
+            raise _Problem(("start", name), f"{value!r} is not in {domain.describe_domain()}")
         start[name] = value
     intentions = data.get("intentions")
     if intentions is not None:
         known = {i.name for i in station.intentions}
-        for name in intentions:
+        for k, name in enumerate(_sequence(intentions, ("intentions",), "intentions")):
             if name not in known:
-                raise ScenarioError(f"{file}: intentions: unknown intention '{name}'")
+                raise _Problem(("intentions", k), f"unknown intention '{name}'")
         intentions = tuple(intentions)
-    raw_config = data.get("config") or {}
-    _known(file, "config", raw_config, _CONFIG_KEYS)
+    raw_config = _mapping(data.get("config"), ("config",), "config")
+    _known(("config",), "config", raw_config, _CONFIG_KEYS)
     transitions = set(model.transition_index)
-    for effect in raw_config.get("effect_timeouts") or {}:
+    timeouts = _mapping(raw_config.get("effect_timeouts"), ("config", "effect_timeouts"), "it")
+    for effect, seconds in timeouts.items():
         if effect not in transitions:
-            raise ScenarioError(f"{file}: config: effect_timeouts: unknown transition '{effect}'")
+            raise _Problem(("config", "effect_timeouts", effect), f"unknown transition '{effect}'")
+        if seconds is not None:
+            _number(seconds, ("config", "effect_timeouts", effect))
+    for key in ("effect_timeout", "heartbeat_timeout", "recheck_period", "retries", "max_steps"):
+        if key in raw_config:
+            _number(raw_config[key], ("config", key), integer=key in ("retries", "max_steps"))
     config = RunnerConfig(
         auto_intentions=frozenset(intentions) if intentions is not None else None,
         **{k: v for k, v in raw_config.items()},
     )
-    delays = dict(data.get("delays") or {})
+    delays = dict(_mapping(data.get("delays"), ("delays",), "delays"))
+    for name, seconds in delays.items():
+        _number(seconds, ("delays", name))
+        if (
+            name != "default"
+            and name not in transitions
+            and name not in {r.name for r in station.resources}
+        ):
+            raise _Problem(("delays", name), f"'{name}' is neither a resource nor an effect")
     default_delay = float(delays.pop("default", 1.0))
     scope = scope_for(model.domains, station.predicates)
     faults = []
-    for k, entry in enumerate(data.get("faults") or []):
-        where = f"{file}: faults[{k}]"
+    for k, entry in enumerate(_sequence(data.get("faults"), ("faults",), "faults")):
+        where: Path = ("faults", k)
         if not isinstance(entry, dict):
-            raise ScenarioError(f"{where}: a fault is a mapping with keys {', '.join(_FAULT_KEYS)}")
+            raise _Problem(where, f"a fault is a mapping with keys {', '.join(_FAULT_KEYS)}")
         _known(where, "fault", entry, _FAULT_KEYS)
         kind = entry.get("kind")
         if kind not in FAULTS:
-            raise ScenarioError(f"{where}: kind must be one of {', '.join(FAULTS)}, not {kind!r}")
-        when = None
-        if "when" in entry:
-            try:
-                when = parse_expr(str(entry["when"]), scope)
-            except Exception as exc:  # the expression parser's own located message
-                raise ScenarioError(f"{where}: when: {exc}") from None
-        if "at" not in entry and when is None:
-            raise ScenarioError(f"{where}: give 'at' (seconds) or 'when' (a condition)")
+            raise _Problem(
+                (*where, "kind"), f"kind must be one of {', '.join(FAULTS)}, not {kind!r}"
+            )
+        when = _when(entry, where, scope)
         fault = Fault(
             kind,
             resource=str(entry.get("resource", "")),
             effect=str(entry.get("effect", "")),
             instead=str(entry.get("instead", "")),
-            count=int(entry.get("count", 1)),
-            values=dict(entry.get("values") or {}),
+            count=int(_number(entry.get("count", 1), (*where, "count"), integer=True)),
+            values=dict(_mapping(entry.get("values"), (*where, "values"), "values")),
         )
-        for name in (fault.effect, fault.instead):
+        if fault.resource and fault.resource not in {r.name for r in station.resources}:
+            raise _Problem((*where, "resource"), f"unknown resource '{fault.resource}'")
+        for key, name in (("effect", fault.effect), ("instead", fault.instead)):
             if name and name not in transitions:
-                raise ScenarioError(f"{where}: unknown transition '{name}'")
+                raise _Problem((*where, key), f"unknown transition '{name}'")
         for name in fault.values:
             if name not in model.variable_index:
-                raise ScenarioError(f"{where}: values: unknown variable '{name}'")
+                raise _Problem((*where, "values", name), f"unknown variable '{name}'")
         text = ", ".join(f"{key}={entry[key]}" for key in _FAULT_KEYS[2:] if key in entry)
-        at = float(entry["at"]) if "at" in entry else None
+        at = _number(entry["at"], (*where, "at")) if "at" in entry else None
         faults.append(ScheduledFault(fault, at, when, text))
     actions = tuple(
-        _read_action(f"{file}: actions[{k}]", entry, scope)
-        for k, entry in enumerate(data.get("actions") or [])
+        _read_action(("actions", k), entry, scope)
+        for k, entry in enumerate(_sequence(data.get("actions"), ("actions",), "actions"))
     )
-    operator = data.get("operator") or {}
+    operator = _mapping(data.get("operator"), ("operator",), "operator")
+    _known(("operator",), "operator", operator, ("delay", "approve", "maintenance"))
     return Scenario(
         file=file,
         description=str(data.get("description", "")),
@@ -200,44 +285,50 @@ def load_scenario(text: str, file: str, station: Station) -> Scenario:
         default_delay=default_delay,
         faults=tuple(faults),
         actions=actions,
-        operator_delay=float(operator.get("delay", 2.0)),
+        operator_delay=_number(operator.get("delay", 2.0), ("operator", "delay")),
         approve=bool(operator.get("approve", True)),
         maintenance=bool(operator.get("maintenance", True)),
-        until=float(data.get("until", 900.0)),
-        expect=data.get("expect") or {},
+        until=_number(data.get("until", 900.0), ("until",)),
+        expect=_mapping(data.get("expect"), ("expect",), "expect"),
     )
 
 
-def _read_action(where: str, entry: Any, scope: Any) -> ScheduledAction:
-    if not isinstance(entry, dict):
-        raise ScenarioError(f"{where}: an action is a mapping with keys at/when, do, ...")
-    do = entry.get("do")
-    if do not in _ACTIONS:
-        raise ScenarioError(f"{where}: do must be one of {', '.join(_ACTIONS)}, not {do!r}")
-    kind, keys = _ACTIONS[do]
-    _known(where, "action", entry, ("at", "when", "do", "user", *keys))
+def _when(entry: dict[str, Any], where: Path, scope: Any) -> Expr | None:
     when = None
     if "when" in entry:
         try:
             when = parse_expr(str(entry["when"]), scope)
         except Exception as exc:  # the expression parser's own located message
-            raise ScenarioError(f"{where}: when: {exc}") from None
+            raise _Problem((*where, "when"), str(exc)) from None
     if "at" not in entry and when is None:
-        raise ScenarioError(f"{where}: give 'at' (seconds) or 'when' (a condition)")
+        raise _Problem(where, "give 'at' (seconds) or 'when' (a condition)")
+    return when
+
+
+def _read_action(where: Path, entry: Any, scope: Any) -> ScheduledAction:
+    if not isinstance(entry, dict):
+        raise _Problem(where, "an action is a mapping with keys at/when, do, ...")
+    do = entry.get("do")
+    if do not in _ACTIONS:
+        raise _Problem((*where, "do"), f"do must be one of {', '.join(_ACTIONS)}, not {do!r}")
+    kind, keys = _ACTIONS[do]
+    _known(where, "action", entry, ("at", "when", "do", "user", *keys))
+    when = _when(entry, where, scope)
     missing = [key for key in keys if key not in entry and key != "reason"]
     if missing:
-        raise ScenarioError(f"{where}: {do} needs {', '.join(missing)}")
+        raise _Problem(where, f"{do} needs {', '.join(missing)}")
     arguments = {key: entry[key] for key in keys if key in entry}
     action = kind(user=str(entry.get("user", "engineer")), **arguments)
-    return ScheduledAction(action, float(entry["at"]) if "at" in entry else None, when)
+    at = _number(entry["at"], (*where, "at")) if "at" in entry else None
+    return ScheduledAction(action, at, when)
 
 
-def _known(where: str, what: str, data: Mapping[str, Any], keys: tuple[str, ...]) -> None:
+def _known(where: Path, what: str, data: Mapping[str, Any], keys: tuple[str, ...]) -> None:
     if not isinstance(data, dict):
-        raise ScenarioError(f"{where}: {what} must be a mapping")
+        raise _Problem(where, f"{what} must be a mapping")
     for key in data:
         if key not in keys:
-            raise ScenarioError(f"{where}: unknown {what} key '{key}'; use {', '.join(keys)}")
+            raise _Problem((*where, key), f"unknown {what} key '{key}'; use {', '.join(keys)}")
 
 
 @dataclass

@@ -152,21 +152,32 @@ def test_replaying_the_same_scenario_gives_the_same_events(
     assert first == second
 
 
-def test_bad_scenarios_are_reported_with_file_and_entry(demo: tuple[Station, Planners]) -> None:
+def test_bad_scenarios_are_reported_with_file_line_column_and_entry(
+    demo: tuple[Station, Planners],
+) -> None:
     station, _ = demo
     cases = {
-        "start: {r9.pos: home}": "start: unknown variable 'r9.pos'",
-        "start: {r1.pos: moon}": "start: r1.pos: 'moon' is not in",
-        "intentions: [build_car]": "unknown intention 'build_car'",
-        "faults: [{at: 1, kind: explode}]": "kind must be one of",
-        "faults: [{kind: disconnect, resource: r2}]": "give 'at' (seconds) or 'when'",
-        "faults: [{when: 'r1.poss == home', kind: set}]": "did you mean 'r1.pos'",
-        "colour: red": "unknown scenario key 'colour'",
+        "start: {r9.pos: home}": "bad.yaml:1:17: start[r9.pos]: unknown variable 'r9.pos'",
+        "start: {r1.pos: moon}": "bad.yaml:1:17: start[r1.pos]: 'moon' is not in",
+        "intentions: [a, build_car]": "bad.yaml:1:29: intentions[1]: unknown intention 'build_car'",
+        "faults:\n  - {at: 1, kind: explode}": "bad.yaml:2:19: faults[0].kind: kind must be one of",
+        "faults: [{kind: disconnect, resource: r2}]": "bad.yaml:1:10: faults[0]: give 'at'",
+        "faults: [{at: 1, kind: disconnect, resource: r9}]": "faults[0].resource: unknown resource",
+        "faults: [{when: 'r1.poss == home', kind: set}]": "faults[0].when: ",
+        "faults: [{at: soon, kind: set}]": "bad.yaml:1:15: faults[0].at: 'soon' is not a number",
+        "config: {retries: 1.5}": "bad.yaml:1:19: config.retries: 1.5 is not a whole number",
+        "delays: {r7: 1}": "bad.yaml:1:14: delays.r7: 'r7' is neither a resource nor an effect",
+        "actions: [{at: 1, do: dance}]": "bad.yaml:1:23: actions[0].do: do must be one of",
+        "actions: [{at: 1, do: reset_operation}]": "actions[0]: reset_operation needs name",
+        "colour: red": "bad.yaml:1:9: colour: unknown scenario key 'colour'",
+        "start: [1, 2": "bad.yaml:1:13: not valid YAML",
     }
     for text, message in cases.items():
-        with pytest.raises(ScenarioError, match=r"bad\.yaml") as caught:
-            load_scenario(text, "bad.yaml", station)
-        assert message in str(caught.value)
+        with pytest.raises(ScenarioError) as caught:
+            load_scenario(text.replace("[a, ", "[tighten_bolts, "), "bad.yaml", station)
+        assert message in str(caught.value), str(caught.value)
+    with pytest.raises(ScenarioError, match=r"did you mean .r1\.pos."):
+        load_scenario("faults: [{when: 'r1.poss == home', kind: set}]", "bad.yaml", station)
 
 
 # -- restart mode (seed 001 VIII-A) ------------------------------------------------------------
