@@ -203,6 +203,12 @@ class Runner:
         self.decisions = [v.name for v in self.model.variables if v.kind is VariableKind.DECISION]
         self.effects = [c for c in self.semantics.transitions if c.kind is TransitionKind.EFFECT]
         self.effect_index = {e.name: k for k, e in enumerate(self.effects)}
+        # the other effects of the same ability: what may happen instead of an expected one
+        self.alternatives: dict[str, frozenset[str]] = {}
+        for ability in station.abilities:
+            own = {n for n in ability.transitions if n in self.effect_index}
+            for name in own:
+                self.alternatives[name] = self.alternatives.get(name, frozenset()) | (own - {name})
         # which effects a changed variable concerns: those whose guard reads it (to watch
         # them for time-outs) and those that write it (to explain a measured change)
         self.effects_reading: dict[str, list[int]] = {}
@@ -379,6 +385,7 @@ class _Tick:
                         s.values[target] = after[target]
                         remaining.pop(target, None)
                     self.emit("effect", effect.name)
+                    self.instead(effect.name)
                     self.happened(effect.name)
                     progress = True
                     break
@@ -388,6 +395,24 @@ class _Tick:
             self.emit(
                 "unexpected", ", ".join(sorted(remaining)), values=dict(sorted(remaining.items()))
             )
+
+    def instead(self, name: str) -> None:
+        """A different effect than the plans expected is an error event (DESIGN.md 4.7)."""
+        expected = self.expected_effects()
+        if name in expected:
+            return
+        instead_of = sorted(self.r.alternatives.get(name, frozenset()) & expected)
+        if instead_of:
+            self.emit("unexpected", name, instead_of=instead_of, why="a different effect")
+
+    def expected_effects(self) -> set[str]:
+        s = self.state
+        expected: set[str] = set()
+        for plan in (s.transition_plan, s.recovery, s.maintenance):
+            if plan is not None:
+                for waiting in plan.remaining.values():
+                    expected.update(waiting)
+        return expected
 
     # -- operator and engineer actions ---------------------------------------------------------
 

@@ -155,7 +155,7 @@ def _show(value: Any) -> str:
 KINDS = (
     "taken",  # the runner took a transition (controlled, automatic, maintenance)
     "effect",  # a measured change explained by an effect transition
-    "unexpected",  # a measured change no enabled effect explains (an error event)
+    "unexpected",  # a measured change no effect explains, or another effect than planned
     "observed",  # a decision or estimated variable reported by a pipeline
     "timeout",  # an effect did not happen in time: disabled in planning
     "reenabled",  # a timed-out effect is usable again

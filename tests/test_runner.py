@@ -130,6 +130,21 @@ def test_table_1_experiment_recovers_as_in_the_paper(
     assert operator_work(events) == list(scenario.expect["operator"])
 
 
+@pytest.mark.parametrize(
+    ("name", "happened", "instead_of"),
+    [
+        ("e8_camera_miss", "r1_cam.locate_tool.miss", "r1_cam.locate_tool.found"),
+        ("e9_torque_not_reached", "nr.run_nut.torque_nok", "nr.run_nut.torque"),
+    ],
+)
+def test_a_different_effect_than_planned_is_an_error_event(
+    demo: tuple[Station, Planners], name: str, happened: str, instead_of: str
+) -> None:
+    _, events, _ = run(demo, name)
+    unexpected = [e for e in events if e.kind == "unexpected"]
+    assert [(e.subject, e.detail["instead_of"]) for e in unexpected] == [(happened, [instead_of])]
+
+
 def test_forbidden_state_recovery_waits_for_the_approval(
     demo: tuple[Station, Planners],
 ) -> None:
