@@ -66,6 +66,13 @@ def _show(value: object) -> str:
     return str(value)
 
 
+# CUDD's garbage collection also empties its computed table, which a running station's
+# planning queries reuse heavily (the same goals from nearby states): with it off, the demo's
+# recovery queries take half the time.  The unique table sized by synthesis has room for
+# millions of dead nodes, so planning leaves collection off and lets one query in every
+# COLLECT_EVERY collect, which bounds memory on a station that runs for weeks.
+COLLECT_EVERY = 100
+
 Restore = Callable[[SymbolicModel], Function]
 """Puts a saved variable order into a fresh encoding and returns the saved bad states."""
 
@@ -86,6 +93,8 @@ class TransitionPlanner:
         else:
             self.bad = restore(self.sym)
         self._search = SymbolicSearch(self.sym, self.bad)
+        self._queries = 0
+        self.sym.bdd.configure(garbage_collection=False)
 
     def order(self) -> list[str]:
         """The current BDD variable order, for saving with the bad states."""
@@ -104,7 +113,15 @@ class TransitionPlanner:
 
     def plan(self, query: PlanQuery, engine: str | None = None) -> PlanResult:
         chosen = engine or self.engine
-        result = self._bmc.plan(query) if chosen == "sat" else self._search.plan(query)
+        self._queries += 1
+        collect = self._queries % COLLECT_EVERY == 0
+        if collect:
+            self.sym.bdd.configure(garbage_collection=True)
+        try:
+            result = self._bmc.plan(query) if chosen == "sat" else self._search.plan(query)
+        finally:
+            if collect:
+                self.sym.bdd.configure(garbage_collection=False)
         if result.status is PlanStatus.BAD_START:
             result = PlanResult(
                 PlanStatus.BAD_START,
