@@ -15,6 +15,10 @@ from planner.symbolic import Function, SymbolicModel, SymbolicTransition, cudd
 from planner.synthesis import automatic_guard
 
 
+# CUDD counts minterms in doubles, which overflow beyond 2^1024
+COUNTABLE_BITS = 1000
+
+
 class SymbolicSearch:
     """Breadth-first planner over a model whose bad states are already known."""
 
@@ -63,7 +67,7 @@ class SymbolicSearch:
                     states,
                     max_steps=query.max_steps,
                     engine=self.name,
-                    statistics={"layers": depth + 1, "reached": sym.count(reached)},
+                    statistics=self._statistics(depth + 1, reached),
                 )
             if depth >= query.max_steps:
                 break
@@ -79,8 +83,15 @@ class SymbolicSearch:
             PlanStatus.UNREACHABLE,
             max_steps=query.max_steps,
             engine=self.name,
-            statistics={"layers": len(layers), "reached": sym.count(reached)},
+            statistics=self._statistics(len(layers), reached),
         )
+
+    def _statistics(self, layers: int, reached: Function) -> dict[str, float]:
+        """Layers, and states reached where CUDD's double-precision counting can say."""
+        out: dict[str, float] = {"layers": layers}
+        if len(self.sym.state_bits) <= COUNTABLE_BITS:
+            out["reached"] = self.sym.count(reached)
+        return out
 
     def reachable(self, start: State, *, maintenance: bool = False) -> Function:
         """Every good state plans can visit from `start`.

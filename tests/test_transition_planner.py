@@ -154,3 +154,26 @@ def test_reachable_states_equal_an_explicit_search(data: st.DataObject) -> None:
     assert planner.sym.count(reached) == len(expected)
     for state in expected:
         assert planner.sym.contains(reached, state)  # type: ignore[arg-type]
+
+
+def test_plans_on_models_too_big_for_cudd_to_count() -> None:
+    """Over 1,000 bits a plan carries no count of the states it reached: CUDD counts in
+    doubles, which overflow beyond 2^1024 states (a 1,000-cell station reaches far more)."""
+    flags = [f"f{k}" for k in range(1100)]
+    text = yaml.safe_dump(
+        {
+            "variables": [{"name": f, "domain": "bool", "initial": False} for f in flags],
+            "transitions": [
+                {"name": "first", "guard": "!f0", "actions": ["f0 := true"]},
+                {"name": "last", "guard": "f0 && !f1099", "actions": ["f1099 := true"]},
+            ],
+            "specifications": [{"name": "order", "invariant": "f1099 -> f0"}],
+        }
+    )
+    model = load_model(text, "big.yaml")
+    planner = TransitionPlanner(model)
+    goal = parse_expr("f1099", scope_for(model.domains))
+    result = planner.plan(PlanQuery(tuple(False for _ in flags), goal, 5))
+    assert result.status is PlanStatus.FOUND
+    assert result.plan == ("first", "last")
+    assert "reached" not in result.statistics
