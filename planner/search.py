@@ -14,7 +14,6 @@ from planner.planning import PlanQuery, PlanResult, PlanStatus, State
 from planner.symbolic import Function, SymbolicModel, SymbolicTransition, cudd
 from planner.synthesis import automatic_guard
 
-
 # CUDD counts minterms in doubles, which overflow beyond 2^1024
 COUNTABLE_BITS = 1000
 
