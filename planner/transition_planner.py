@@ -7,7 +7,6 @@ default; `sat`: incremental SAT bounded model checking, the papers' method).
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Callable
 from functools import cached_property
 from typing import TYPE_CHECKING
@@ -68,11 +67,11 @@ def _show(value: object) -> str:
 
 
 # CUDD's garbage collection also empties its computed table, which a running station's
-# planning queries reuse heavily (the same goals from nearby states): with it off, repeated
-# planning on the demo takes half the time.  Planning leaves collection off until CUDD's
-# memory has grown by COLLECT_ABOVE bytes since synthesis, and from then on collects as
-# usual (CUDD keeps its memory), which bounds memory on long runs and on big models.
-COLLECT_ABOVE = 256 * 2**20
+# planning queries reuse heavily (the same goals from nearby states): with it off, the demo's
+# recovery queries take half the time.  The unique table sized by synthesis has room for
+# millions of dead nodes, so planning leaves collection off and lets one query in every
+# COLLECT_EVERY collect, which bounds memory on a station that runs for weeks.
+COLLECT_EVERY = 100
 
 Restore = Callable[[SymbolicModel], Function]
 """Puts a saved variable order into a fresh encoding and returns the saved bad states."""
@@ -94,17 +93,8 @@ class TransitionPlanner:
         else:
             self.bad = restore(self.sym)
         self._search = SymbolicSearch(self.sym, self.bad)
-        self._memory = self._memory_in_use()
+        self._queries = 0
         self.sym.bdd.configure(garbage_collection=False)
-
-    def _memory_in_use(self) -> float:
-        with warnings.catch_warnings():  # dd warns that the unit of 'mem' changed in 0.5.7
-            warnings.simplefilter("ignore")
-            return float(self.sym.bdd.statistics()["mem"])
-
-    def _tidy(self) -> None:
-        grown = self._memory_in_use() - self._memory > COLLECT_ABOVE
-        self.sym.bdd.configure(garbage_collection=grown)
 
     def order(self) -> list[str]:
         """The current BDD variable order, for saving with the bad states."""
@@ -123,10 +113,15 @@ class TransitionPlanner:
 
     def plan(self, query: PlanQuery, engine: str | None = None) -> PlanResult:
         chosen = engine or self.engine
+        self._queries += 1
+        collect = self._queries % COLLECT_EVERY == 0
+        if collect:
+            self.sym.bdd.configure(garbage_collection=True)
         try:
             result = self._bmc.plan(query) if chosen == "sat" else self._search.plan(query)
         finally:
-            self._tidy()
+            if collect:
+                self.sym.bdd.configure(garbage_collection=False)
         if result.status is PlanStatus.BAD_START:
             result = PlanResult(
                 PlanStatus.BAD_START,
