@@ -1,0 +1,852 @@
+"""Runner benchmark: recovery planning in E1-E9 against seed 000, and tick time versus size.
+
+    python -m bench.runner [--runs 5] [--only e3 e7] [--sizes 100 1000 3000 10000] [--quick]
+
+Part 1 plays the nine Table 1 scenarios on the demo station `--runs` times and times each
+planning action the paper lists (matched in order among our non-routine planning actions
+after the first fault), against the paper's nuXmv times and the issue's 20 ms target.
+
+Part 2 drives the runner against the simulated world on the demo station (the nominal
+assembly) and on generated models of ~100 ... 10,000 transitions (bench/cells.py), timing
+`Runner.tick` alone: idle ticks, ticks of a running station that emit no plan, and ticks that
+replan.  Stock supervisor synthesis is timed separately on growing models, each in a child
+process killed after `--synthesis-limit` seconds.  Where stock synthesis exceeds that limit,
+the tick runs build the planner with a bench-side stand-in for it, marked in the table.
+
+Prints Markdown and writes it to bench/results/runner.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import io
+import json
+import math
+import pstats
+import statistics
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+from unittest import mock
+
+from bench import cells
+from bench.planning import machine
+from planner.runner_io import Event
+
+ROOT = Path(__file__).resolve().parent.parent
+RESULTS = ROOT / "bench" / "results"
+DEMO = ROOT / "models" / "demo_station.yaml"
+SCENARIOS = ROOT / "models" / "scenarios"
+
+# seed 000 Table 1: the planning actions of each experiment and nuXmv's times (ms, a laptop)
+PAPER_MS: dict[str, list[tuple[str, float]]] = {
+    "e1": [("OP", 223)],
+    "e2": [("TP w/MT", 181)],
+    "e3": [("TP w/ETO", 787), ("OP w/DO", 245)],
+    "e4": [("TP w/ETO", 747), ("OP w/DO", 498), ("TP w/MT", 579)],
+    "e5": [("TP w/RTO", 926), ("OP w/DO", 661)],
+    "e6": [("TP w/RTO", 1071), ("OP w/DO", 512), ("TP w/MT", 632)],
+    "e7": [("TP w/RTO", 855), ("OP w/DO", 637), ("TP w/MT", 1343)],
+    "e8": [("TP", 642)],
+    "e9": [("TP", 895)],
+}
+RECOVERY_TARGET_MS = 20.0  # the issue: every recovery planning action
+DEMO_TICK_TARGET_MS = 1.0  # the issue: a tick without replanning on the demo station
+LARGE_TICK_TARGET_MS = 10.0  # ... and at 10,000 transitions
+
+
+# ---- part 1: E1-E9 ---------------------------------------------------------------------------
+
+
+def recovery(events: Sequence[Event]) -> list[Event]:
+    """Planning actions after the first fault that were not routine (as tests/test_runner.py)."""
+    first = next((k for k, e in enumerate(events) if e.kind == "fault"), len(events))
+    return [
+        e
+        for e in events[first:]
+        if e.kind == "plan" and e.detail["reason"] not in ("goals", "intentions")
+    ]
+
+
+def matches(paper: str, event: Event) -> bool:
+    level, *flags = paper.replace(" w/", " ").split()
+    return bool(event.detail["level"] == level and set(flags) <= set(event.detail["flags"]))
+
+
+def match_paper(paper: Sequence[str], ours: Sequence[Event]) -> list[int | None]:
+    """For each paper action in order, the index of the first matching event after the last."""
+    out: list[int | None] = []
+    at = 0
+    for action in paper:
+        found = next((k for k in range(at, len(ours)) if matches(action, ours[k])), None)
+        out.append(found)
+        if found is not None:
+            at = found + 1
+    return out
+
+
+@dataclass
+class Experiment:
+    name: str
+    paper: list[tuple[str, float]]
+    finished: list[bool] = field(default_factory=list)
+    # per paper action: our times over the runs, and what it matched (label, reason, status)
+    times: list[list[float]] = field(default_factory=list)
+    matched: list[str] = field(default_factory=list)
+    # all our recovery planning actions, from the last run, and their total per run
+    ours: list[str] = field(default_factory=list)
+    totals: list[float] = field(default_factory=list)
+    problem: str = ""
+
+
+def describe(event: Event) -> str:
+    return f"{event.subject} ({event.detail['reason']}, {event.detail['status']})"
+
+
+def run_experiment(station: Any, planners: Any, path: Path, runs: int) -> Experiment:
+    from app.scenario import load_scenario, play
+
+    key = path.name.split("_")[0]
+    scenario = load_scenario(path.read_text(), str(path), station)
+    expected = list(scenario.expect.get("recovery", []))
+    result = Experiment(path.stem, PAPER_MS.get(key, [(a, math.nan) for a in expected]))
+    if [a for a, _ in result.paper] != expected:
+        result.problem = f"scenario expects {expected}, the paper table {result.paper}"
+    result.times = [[] for _ in result.paper]
+    result.matched = ["" for _ in result.paper]
+    for _ in range(runs):
+        events = list(play(station, scenario, planners, stopwatch=time.perf_counter))
+        result.finished.append(events[-1].kind == "done")
+        ours = recovery(events)
+        for k, found in enumerate(match_paper([a for a, _ in result.paper], ours)):
+            if found is not None:
+                result.times[k].append(ours[found].millis or 0.0)
+                result.matched[k] = describe(ours[found])
+        result.ours = [f"{describe(e)} {e.millis or 0.0:.1f}" for e in ours]
+        result.totals.append(sum(e.millis or 0.0 for e in ours))
+    return result
+
+
+def experiments_table(rows: list[Experiment]) -> str:
+    out = [
+        "| experiment | paper action | our planning action | paper ms (nuXmv) "
+        "| our median ms | our max ms | paper / ours | under 20 ms |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for row in rows:
+        for (action, paper_ms), times, matched in zip(
+            row.paper, row.times, row.matched, strict=True
+        ):
+            if not times:
+                out.append(
+                    f"| {row.name} | {action} | **not found** | {paper_ms:,.0f} | | | | **no** |"
+                )
+                continue
+            median = statistics.median(times)
+            under = "yes" if median < RECOVERY_TARGET_MS else "**no**"
+            out.append(
+                f"| {row.name} | {action} | {matched} | {paper_ms:,.0f} | {median:.1f} "
+                f"| {max(times):.1f} | {paper_ms / median:,.0f}x | {under} |"
+            )
+    return "\n".join(out) + "\n"
+
+
+def taken_table(rows: list[Experiment]) -> str:
+    out = [
+        "| experiment | finished | paper actions "
+        "| recovery planning actions we took (ms, last run) | count | total ms (median of runs) |",
+        "|---|---|---|---|---|---|",
+    ]
+    for row in rows:
+        finished = f"{sum(row.finished)}/{len(row.finished)}"
+        paper = ", ".join(a for a, _ in row.paper) + (f" ({row.problem})" if row.problem else "")
+        total = statistics.median(row.totals) if row.totals else math.nan
+        out.append(
+            f"| {row.name} | {finished} | {paper} | {'; '.join(row.ours)} | {len(row.ours)} "
+            f"| {total:.1f} |"
+        )
+    return "\n".join(out) + "\n"
+
+
+# ---- part 2: ticks -----------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Tick:
+    phase: str  # "idle": no intention armed yet; "running": after the first start
+    millis: float
+    plans: tuple[tuple[str, float], ...]  # (label, planning ms) of the plan events
+    profile: Any = field(default=None, compare=False)  # cProfile.Profile of the tick, if asked
+
+
+def drive(
+    station: Any,
+    planners: Any,
+    intentions: Sequence[str],
+    *,
+    ticks: int,
+    idle: int,
+    cycle: bool,
+    config: Any = None,
+    delays: dict[str, float] | None = None,
+    default_delay: float = 1.0,
+    start: dict[str, Any] | None = None,
+    step: float = 0.1,
+    profile: bool = False,
+) -> Iterator[Tick]:
+    """The loop of app.scenario.play, timing `Runner.tick` alone (not the simulated world).
+
+    `idle` ticks with no intention armed come first; then the intentions are started one
+    after another as each finishes (over and over if `cycle`), until `ticks` ticks in all or,
+    without `cycle`, the last one finished.
+    """
+    from hw.sim import SimulatedWorld
+    from planner.runner import Runner
+    from planner.runner_io import Inputs, RunnerConfig, StartIntention
+
+    base = config or RunnerConfig()
+    runner = Runner(
+        station,
+        planners.transition,
+        planners.operation,
+        replace(base, auto_intentions=frozenset()),
+        time.perf_counter,
+    )
+    world = SimulatedWorld(station, delays=delays, default_delay=default_delay, start=start)
+    now = 0.0
+    state = runner.initial(now, start)
+    published = dict(state.values)
+    current = -1
+    for k in range(ticks):
+        world.advance(published, now)
+        report = world.report()
+        actions: tuple[Any, ...] = ()
+        if k >= idle and (current < 0 or state.intentions[intentions[current]] == "f"):
+            if current + 1 >= len(intentions) and not cycle:
+                return
+            current = (current + 1) % len(intentions)
+            actions = (StartIntention(name=intentions[current]),)
+        inputs = Inputs(report.measured, report.observed, report.heartbeats, actions)
+        profiler = cProfile.Profile() if profile else None
+        if profiler is not None:
+            profiler.enable()
+        started = time.perf_counter()
+        state, _commands, events = runner.tick(state, inputs, now)
+        millis = (time.perf_counter() - started) * 1000
+        if profiler is not None:
+            profiler.disable()
+        published = dict(state.values)
+        plans = tuple((e.subject, e.millis or 0.0) for e in events if e.kind == "plan")
+        yield Tick("idle" if current < 0 else "running", millis, plans, profiler)
+        now = round(now + step, 6)
+
+
+def components(model: Any) -> list[list[str]]:
+    """Variables grouped into independent parts: no transition or specification spans two."""
+    from planner.expressions import variables_of
+
+    parent = {v.name: v.name for v in model.variables}
+
+    def find(name: str) -> str:
+        while parent[name] != name:
+            parent[name] = parent[parent[name]]
+            name = parent[name]
+        return name
+
+    hyperedges = [
+        variables_of(t.guard)
+        | {a.target for a in t.actions}
+        | {a.source for a in t.actions if a.source is not None}
+        for t in model.transitions
+    ] + [variables_of(s.invariant) for s in model.specifications]
+    for edge in hyperedges:
+        first, *rest = sorted(edge) or [""]
+        for name in rest:
+            parent[find(name)] = find(first)
+    groups: dict[str, list[str]] = {}
+    for v in model.variables:
+        groups.setdefault(find(v.name), []).append(v.name)
+    return list(groups.values())
+
+
+def componentwise_bad_states(sym: Any) -> Any:
+    """The bad states of planner/synthesis.py, computed one independent part at a time.
+
+    A stand-in for `bad_states` on models of independent cells, where stock synthesis is
+    infeasible: its frontier is layered by distance, and with K cells whose automatics can be
+    enabled together (in valid if unreachable states) the closure needs K layers, each a
+    preimage over every transition.  Within one part the rule is the same (an effect only
+    where no automatic of the part is enabled: the other parts' automatics stop after
+    finitely many steps without touching it), and the union of the parts' closures is the
+    same set; the test checks it against `bad_states`.
+    """
+    from planner.expressions import variables_of
+    from planner.model import TransitionKind
+
+    part_of = {name: k for k, names in enumerate(components(sym.model)) for name in names}
+    count = max(part_of.values(), default=-1) + 1
+    transitions: list[list[Any]] = [[] for _ in range(count)]
+    violated = [sym.false for _ in range(count)]
+    valid = [sym.true for _ in range(count)]
+    bad = sym.false  # a specification over no variable (`false`) is violated everywhere
+    for t in sym.transitions:
+        touched = variables_of(t.transition.guard) | t.transition.written
+        if touched:  # else it changes nothing: no bad state is its preimage but bad ones
+            transitions[part_of[min(touched)]].append(t)
+    for spec in sym.model.specifications:
+        read = variables_of(spec.invariant)
+        if read:
+            violated[part_of[min(read)]] |= ~sym.expr(spec.invariant)
+        else:
+            bad |= ~sym.expr(spec.invariant)
+    for v in sym.model.variables:
+        valid[part_of[v.name]] &= sym._valid_codes(v.name)
+    for k in range(count):
+        automatic = sym.false
+        for t in transitions[k]:
+            if t.kind is TransitionKind.AUTOMATIC:
+                automatic |= t.guard
+        closure = frontier = violated[k] & valid[k]
+        while frontier != sym.false:
+            by_automatic = by_effect = sym.false
+            for t in transitions[k]:
+                if t.kind is TransitionKind.AUTOMATIC:
+                    by_automatic |= sym.preimage(t, frontier)
+                elif t.kind is TransitionKind.EFFECT:
+                    by_effect |= sym.preimage(t, frontier)
+            frontier = (by_automatic | (by_effect & ~automatic)) & valid[k] & ~closure
+            closure |= frontier
+        bad |= closure
+    return bad & sym.valid
+
+
+def build_cells(count: int, stock: bool, emit: Callable[[dict[str, Any]], None]) -> tuple[Any, Any]:
+    """Station and planners for `count` cells; `stock`: the planner's own construction."""
+    from app.scenario import Planners
+    from planner.operation_planner import OperationPlanner
+    from planner.station import load_station
+    from planner.transition_planner import TransitionPlanner
+
+    started = time.perf_counter()
+    station = load_station(cells.station_text(count), f"cells_{count}.yaml")
+    emit({"stage": "load", "s": time.perf_counter() - started})
+    started = time.perf_counter()
+    if stock:
+        tp = TransitionPlanner(station.model)
+    else:
+
+        def restore(sym: Any) -> Any:
+            bad = componentwise_bad_states(sym)
+            sym.sift()  # as after stock synthesis
+            return bad
+
+        # the automatic-cycle check has the same layered fixpoint; the cells have no cycle
+        with mock.patch("planner.transition_planner.check_dynamics", lambda sym: None):
+            tp = TransitionPlanner(station.model, restore=restore)
+    emit({"stage": "transition planner", "s": time.perf_counter() - started})
+    started = time.perf_counter()
+    op = OperationPlanner(station)
+    emit({"stage": "operation planner", "s": time.perf_counter() - started})
+    sizes = {
+        "transitions": len(station.model.transitions),
+        "variables": len(station.model.variables),
+        "bits": len(tp.sym.state_bits),
+        "op_bits": len(op.planner.sym.state_bits),
+    }
+    emit({"stage": "sizes", **sizes})
+    return station, Planners(tp, op)
+
+
+def child_ticks(count: int, stock: bool, ticks: int, idle: int) -> None:
+    """Child process: build, then stream one JSON line per tick (the parent may kill us)."""
+
+    def emit(record: dict[str, Any]) -> None:
+        print(json.dumps(record), flush=True)
+
+    station, planners = build_cells(count, stock, emit)
+    names = [cells.intention(c) for c in cells.cell_names(count)]
+    for tick in drive(station, planners, names, ticks=ticks, idle=idle, cycle=True):
+        emit({"phase": tick.phase, "ms": tick.millis, "plans": tick.plans})
+
+
+def child_synthesis(count: int) -> None:
+    """Child process: stock `TransitionPlanner(model)`, with its stages timed as they end."""
+    import planner.transition_planner as tp_module
+    from planner.station import load_station
+    from planner.symbolic import SymbolicModel
+    from planner.synthesis import bad_states
+
+    def emit(record: dict[str, Any]) -> None:
+        print(json.dumps(record), flush=True)
+
+    def timed(stage: str, function: Callable[..., Any]) -> Callable[..., Any]:
+        def run(*args: Any) -> Any:
+            emit({"started": stage})
+            started = time.perf_counter()
+            result = function(*args)
+            emit({"stage": stage, "s": time.perf_counter() - started})
+            return result
+
+        return run
+
+    station = load_station(cells.station_text(count), f"cells_{count}.yaml")
+    started = time.perf_counter()
+    with (
+        mock.patch.object(
+            tp_module, "check_dynamics", timed("cycle check", tp_module.check_dynamics)
+        ),
+        mock.patch.object(tp_module, "bad_states", timed("bad states", bad_states)),
+        mock.patch.object(SymbolicModel, "sift", timed("sift", SymbolicModel.sift)),
+    ):
+        planner = tp_module.TransitionPlanner(station.model)
+    emit(
+        {"stage": "total", "s": time.perf_counter() - started, "bits": len(planner.sym.state_bits)}
+    )
+
+
+def run_child(arguments: list[str], limit: float) -> tuple[list[dict[str, Any]], bool, str]:
+    """A child's JSON lines, whether it finished within `limit` seconds (else it was
+    killed), and the last line of its error output if it failed."""
+    command = [sys.executable, "-m", "bench.runner", *arguments]
+    error = ""
+    try:
+        done = subprocess.run(
+            command, cwd=ROOT, capture_output=True, text=True, timeout=limit, check=False
+        )
+        output, finished = done.stdout, done.returncode == 0
+        if done.returncode != 0:
+            print(done.stderr[-3000:], file=sys.stderr)
+            lines = done.stderr.strip().splitlines()
+            error = lines[-1] if lines else f"exit status {done.returncode}"
+    except subprocess.TimeoutExpired as expired:
+        raw = expired.stdout or b""
+        output = raw.decode() if isinstance(raw, bytes) else raw
+        finished = False
+    records = []
+    for line in output.splitlines():
+        try:
+            records.append(json.loads(line))
+        except json.JSONDecodeError:
+            break  # a line cut by the kill
+    return records, finished, error
+
+
+@dataclass
+class Synthesis:
+    transitions: int
+    cells: int
+    bits: int = 0
+    stages: dict[str, float] = field(default_factory=dict)
+    total: float | None = None  # seconds; None: killed at the limit
+    running: str = ""  # the stage it was in when killed
+    error: str = ""  # how it failed, if it did
+
+
+def probe_synthesis(sizes: Sequence[int], limit: float) -> list[Synthesis]:
+    """Stock synthesis on growing models until one takes longer than `limit` seconds."""
+    out = []
+    for transitions in sizes:
+        count = cells.cells_for(transitions)
+        records, finished, error = run_child(["--child", "synthesis", "--cells", str(count)], limit)
+        row = Synthesis(count * cells.TRANSITIONS_PER_CELL, count, 8 * count)
+        for record in records:
+            if "stage" in record and record["stage"] != "total":
+                row.stages[record["stage"]] = record["s"]
+            if "started" in record:
+                row.running = record["started"]
+            if record.get("stage") == "total":
+                row.total, row.bits = record["s"], record["bits"]
+        out.append(row)
+        row.error = error
+        print(f"  synthesis, {row.transitions} transitions: {fmt_s(row.total)}", file=sys.stderr)
+        if not finished:
+            break
+    return out
+
+
+def fit(probe: list[Synthesis]) -> tuple[int, float, float] | None:
+    """Transitions, seconds and exponent of a power law through the last two finished points."""
+    done = [(p.transitions, p.total) for p in probe if p.total is not None and p.total > 0.5]
+    if len(done) < 2:
+        return None
+    (n0, s0), (n1, s1) = done[-2], done[-1]
+    return n1, s1, math.log(s1 / s0) / math.log(n1 / n0)
+
+
+def extrapolate(probe: list[Synthesis], transitions: int) -> float | None:
+    fitted = fit(probe)
+    if fitted is None:
+        return None
+    n1, s1, exponent = fitted
+    return float(s1 * (transitions / n1) ** exponent)
+
+
+def fmt_s(seconds: float | None) -> str:
+    if seconds is None:
+        return "killed"
+    if seconds >= 3600 * 24 * 365:
+        return f"~{seconds / (3600 * 24 * 365):,.0f} years"
+    if seconds >= 3600 * 24:
+        return f"~{seconds / (3600 * 24):,.0f} days"
+    if seconds >= 3600:
+        return f"~{seconds / 3600:,.1f} h"
+    if seconds >= 120:
+        return f"~{seconds / 60:,.0f} min"
+    return f"{seconds:,.1f} s"
+
+
+@dataclass
+class Size:
+    name: str
+    transitions: int
+    variables: int = 0
+    bits: int = 0
+    synthesis: str = ""
+    build: str = ""
+    ticks: list[Tick] = field(default_factory=list)
+    target: float | None = None
+    note: str = ""
+
+    def quiet(self, phase: str) -> list[float]:
+        return [t.millis for t in self.ticks if t.phase == phase and not t.plans]
+
+    def replans(self) -> list[float]:
+        return [t.millis for t in self.ticks if t.plans]
+
+
+def p99(values: list[float]) -> float:
+    ordered = sorted(values)
+    return ordered[min(len(ordered) - 1, math.ceil(0.99 * len(ordered)) - 1)]
+
+
+def ticks_table(rows: list[Size]) -> str:
+    out = [
+        "| model | transitions | variables (bits) | stock supervisor synthesis "
+        "| planners for the ticks | idle tick median ms (n) "
+        "| running tick w/o replanning median / p99 ms (n) "
+        "| tick with replanning median ms (n) | target | met |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for row in rows:
+        idle, quiet, plans = row.quiet("idle"), row.quiet("running"), row.replans()
+        idle_text = f"{statistics.median(idle):.2f} ({len(idle)})" if idle else "none"
+        quiet_text = (
+            f"{statistics.median(quiet):.2f} / {p99(quiet):.2f} ({len(quiet)})" if quiet else "none"
+        )
+        plan_text = f"{statistics.median(plans):,.1f} ({len(plans)})" if plans else "none"
+        if row.note:
+            plan_text += f"; {row.note}"
+        target, met = "", ""
+        if row.target is not None:
+            target = f"< {row.target:g} ms w/o replanning"
+            measured = quiet or idle
+            if not measured:
+                met = "not measured"
+            else:
+                ok = statistics.median(measured) < row.target
+                met = "yes" if ok else "**no**"
+                if not quiet:
+                    met += " (idle ticks only)"
+        out.append(
+            f"| {row.name} | {row.transitions:,} | {row.variables:,} ({row.bits:,}) "
+            f"| {row.synthesis} | {row.build} | {idle_text} | {quiet_text} | {plan_text} "
+            f"| {target} | {met} |"
+        )
+    return "\n".join(out) + "\n"
+
+
+def probe_table(probe: list[Synthesis], limit: float) -> str:
+    out = [
+        "| transitions | cells | automatic-cycle check s | bad states s | sift s | "
+        "TransitionPlanner(model) s |",
+        "|---|---|---|---|---|---|",
+    ]
+    for p in probe:
+        stages = [
+            f"{p.stages[s]:,.1f}" if s in p.stages else ("running" if p.running == s else "")
+            for s in ("cycle check", "bad states", "sift")
+        ]
+        total = f"{p.total:,.1f}" if p.total is not None else f"> {limit:g} (killed)"
+        if p.error:
+            total = f"**failed**: {p.error}"
+        out.append(f"| {p.transitions:,} | {p.cells} | {' | '.join(stages)} | {total} |")
+    return "\n".join(out) + "\n"
+
+
+def run_size(
+    transitions: int,
+    probe: list[Synthesis],
+    limit: float,
+    budget: float,
+    ticks: int,
+    idle: int,
+) -> Size:
+    count = cells.cells_for(transitions)
+    row = Size(f"{count} cells", count * cells.TRANSITIONS_PER_CELL)
+    row.target = LARGE_TICK_TARGET_MS if row.transitions >= 10_000 else None
+    known = next((p for p in probe if p.cells == count), None)
+    stock = known is not None and known.total is not None
+    guess = extrapolate(probe, row.transitions)
+    if known is not None and known.total is not None:
+        row.synthesis = f"{known.total:,.1f} s"
+    else:
+        exceeded = any(p.total is None for p in probe)
+        row.synthesis = (
+            f"> {limit:g} s (killed in {known.running or 'loading'})"
+            if known is not None
+            else "not tried (a smaller size exceeded the limit)"
+            if exceeded
+            else "not in --probe"
+        )
+        row.synthesis += f"; extrapolated {fmt_s(guess)}" if guess else ""
+    started = time.perf_counter()
+    arguments = ["--child", "ticks", "--cells", str(count), "--ticks", str(ticks)]
+    arguments += ["--idle", str(idle)] + ([] if stock else ["--componentwise"])
+    records, finished, error = run_child(arguments, budget)
+    elapsed = time.perf_counter() - started
+    stages = {r["stage"]: r for r in records if "stage" in r}
+    if "sizes" in stages:
+        row.variables, row.bits = stages["sizes"]["variables"], stages["sizes"]["bits"]
+    build = sum(r["s"] for r in records if "s" in r)
+    row.build = ("stock" if stock else "bench stand-ins†") + f", built in {build:,.1f} s"
+    row.ticks = [
+        Tick(r["phase"], r["ms"], tuple((label, ms) for label, ms in r["plans"]))
+        for r in records
+        if "phase" in r
+    ]
+    if error:
+        row.note = f"**failed**: {error}"
+    elif not finished:
+        waited = elapsed - build - sum(t.millis for t in row.ticks) / 1000
+        row.note = f"the next ran {waited:,.0f} s without finishing (budget {budget:g} s)"
+    print(f"  ticks, {row.transitions} transitions: {len(row.ticks)} ticks", file=sys.stderr)
+    return row
+
+
+def demo_ticks(station: Any, planners: Any, idle: int, synthesis: float) -> Size:
+    from app.scenario import load_scenario
+
+    path = SCENARIOS / "nominal.yaml"
+    scenario = load_scenario(path.read_text(), str(path), station)
+    row = Size("demo station, nominal.yaml", len(station.model.transitions))
+    row.variables = len(station.model.variables)
+    row.bits = len(planners.transition.sym.state_bits)
+    row.synthesis = f"{synthesis:,.1f} s"
+    row.build = "stock"
+    row.target = DEMO_TICK_TARGET_MS
+    row.ticks = list(
+        drive(
+            station,
+            planners,
+            scenario.intentions or (),
+            ticks=idle + int(scenario.until / 0.1),
+            idle=idle,
+            cycle=False,
+            config=scenario.config,
+            delays=dict(scenario.delays),
+            default_delay=scenario.default_delay,
+            start=dict(scenario.start),
+        )
+    )
+    return row
+
+
+def profile_ticks(transitions: int, ticks: int, idle: int, top: int = 15) -> None:
+    """cProfile of `Runner.tick`, per kind of tick, in this process (0: the demo, nominal)."""
+    if transitions:
+        count = cells.cells_for(transitions)
+        stock = count * cells.TRANSITIONS_PER_CELL <= 200  # stock synthesis takes seconds
+
+        def emit(record: dict[str, Any]) -> None:
+            print(json.dumps(record), file=sys.stderr)
+
+        station, planners = build_cells(count, stock, emit)
+        names = [cells.intention(c) for c in cells.cell_names(count)]
+        run = drive(station, planners, names, ticks=ticks, idle=idle, cycle=True, profile=True)
+    else:
+        from app.scenario import Planners, load_scenario
+        from planner.operation_planner import OperationPlanner
+        from planner.station import load_station
+        from planner.transition_planner import TransitionPlanner
+
+        station = load_station(DEMO.read_text(), str(DEMO))
+        planners = Planners(TransitionPlanner(station.model), OperationPlanner(station))
+        path = SCENARIOS / "nominal.yaml"
+        scenario = load_scenario(path.read_text(), str(path), station)
+        run = drive(
+            station,
+            planners,
+            scenario.intentions or (),
+            ticks=ticks,
+            idle=idle,
+            cycle=False,
+            delays=dict(scenario.delays),
+            default_delay=scenario.default_delay,
+            profile=True,
+        )
+    kinds: dict[str, list[Tick]] = {"idle": [], "running, no plan": [], "replanning": []}
+    for tick in run:
+        kind = (
+            "replanning" if tick.plans else "idle" if tick.phase == "idle" else "running, no plan"
+        )
+        kinds[kind].append(tick)
+    for kind, chosen in kinds.items():
+        if not chosen:
+            continue
+        out = io.StringIO()
+        stats = pstats.Stats(chosen[0].profile, stream=out)
+        for tick in chosen[1:]:
+            stats.add(tick.profile)
+        median = statistics.median(t.millis for t in chosen)
+        print(f"== {kind} ticks: {len(chosen)}, median {median:.2f} ms (profiled)")
+        stats.sort_stats("tottime").print_stats(top)
+        print(out.getvalue().split("\n\n", 1)[-1].strip() + "\n")
+
+
+def revision() -> str:
+    """The commit measured, and whether the code under it had uncommitted changes."""
+    try:
+        commit = subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "planner", "app", "hw", "models"],
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+        ).stdout.strip()
+    except OSError:
+        return "unknown commit"
+    return f"commit {commit or 'unknown'}" + (" with uncommitted changes" if dirty else "")
+
+
+FOOTNOTES = (
+    "† Bench stand-ins, used where stock synthesis was not tried or exceeded the limit: the "
+    "bad states "
+    "computed per independent cell (`componentwise_bad_states`: the same set as "
+    "`bad_states`, checked by bench/test_runner_bench.py) passed through "
+    "`TransitionPlanner(restore=...)`, and the automatic-cycle check skipped.\n"
+)
+
+
+# ---- main ------------------------------------------------------------------------------------
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
+    parser.add_argument("--runs", type=int, default=5, help="plays of each E1-E9 scenario")
+    parser.add_argument("--only", nargs="*", help="experiments whose names contain these (e3 ...)")
+    parser.add_argument(
+        "--sizes", type=int, nargs="*", default=[100, 1000, 3000, 10000], help="transitions"
+    )
+    parser.add_argument(
+        "--probe",
+        type=int,
+        nargs="*",
+        default=[100, 200, 300, 400, 500],
+        help="transitions to time stock synthesis on, until one exceeds --synthesis-limit",
+    )
+    parser.add_argument("--synthesis-limit", type=float, default=90.0, help="seconds")
+    parser.add_argument("--budget", type=float, default=90.0, help="seconds per size's tick run")
+    parser.add_argument("--ticks", type=int, default=400, help="ticks per size (idle included)")
+    parser.add_argument("--idle", type=int, default=50, help="idle ticks before the first start")
+    parser.add_argument("--quick", action="store_true", help="1 run, small sizes, short limits")
+    parser.add_argument("--output", type=Path, default=RESULTS / "runner.md")
+    parser.add_argument(
+        "--profile",
+        type=int,
+        metavar="TRANSITIONS",
+        help="instead: cProfile the ticks of one size (0: the demo), print the hotspots",
+    )
+    parser.add_argument("--child", choices=["ticks", "synthesis"], help=argparse.SUPPRESS)
+    parser.add_argument("--cells", type=int, default=1, help=argparse.SUPPRESS)
+    parser.add_argument("--componentwise", action="store_true", help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.child == "ticks":
+        child_ticks(args.cells, not args.componentwise, args.ticks, args.idle)
+        return
+    if args.child == "synthesis":
+        child_synthesis(args.cells)
+        return
+    if args.profile is not None:
+        profile_ticks(args.profile, args.ticks, args.idle)
+        return
+    if args.quick:
+        args.runs, args.sizes, args.probe = 1, [100, 1000], [100, 200]
+        args.synthesis_limit, args.budget, args.ticks = 30.0, 30.0, 200
+
+    from app.scenario import Planners
+    from planner.operation_planner import OperationPlanner
+    from planner.station import load_station
+    from planner.transition_planner import TransitionPlanner
+
+    measured = revision()
+    station = load_station(DEMO.read_text(), str(DEMO))
+    started = time.perf_counter()
+    planners = Planners(TransitionPlanner(station.model), OperationPlanner(station))
+    demo_synthesis = time.perf_counter() - started
+    paths = sorted(SCENARIOS.glob("e[1-9]_*.yaml"))
+    if args.only:
+        paths = [p for p in paths if any(o in p.stem for o in args.only)]
+    experiments = []
+    for path in paths:
+        experiments.append(run_experiment(station, planners, path, args.runs))
+        print(f"  {path.stem}: done", file=sys.stderr)
+
+    probe = probe_synthesis(args.probe, args.synthesis_limit) if args.sizes else []
+    sizes = [demo_ticks(station, planners, args.idle, demo_synthesis)] if args.sizes else []
+    for transitions in args.sizes:
+        sizes.append(
+            run_size(transitions, probe, args.synthesis_limit, args.budget, args.ticks, args.idle)
+        )
+
+    command = " ".join(["python -m bench.runner", *sys.argv[1:]])
+    if revision() != measured:  # child processes import the code as it is when they start
+        measured += f" (changed to {revision()} during the run: measurements mix the two)"
+    text = f"`{command}`, {time.strftime('%Y-%m-%d')}, {measured}. Machine: {machine()}\n\n"
+    if experiments:
+        text += (
+            f"## Recovery planning in seed 000's experiments (demo station, {args.runs} runs)\n\n"
+            "Each planning action of seed 000 Table 1, matched in order among our non-routine "
+            "planning actions (reason not `goals`/`intentions`) after the first fault; "
+            "target: under 20 ms (median).\n\n"
+            + experiments_table(experiments)
+            + "\nAll our recovery planning actions (label (reason, status) ms):\n\n"
+            + taken_table(experiments)
+        )
+    if sizes:
+        text += (
+            "\n## Runner tick versus model size\n\n"
+            "`Runner.tick` alone (not the simulated world), 0.1 s of simulated time per tick. "
+            f"Idle: {args.idle} ticks with no intention armed. Running: then the station's "
+            "intentions (bench/cells.py: one cell after another) are started one after another; "
+            "ticks that emitted no plan event (effects pending, operations executing) vs. ticks "
+            f"that replanned. Each generated size runs in a child process for at most "
+            f"{args.budget:g} s (building included).\n\n" + ticks_table(sizes) + "\n" + FOOTNOTES
+        )
+    if probe:
+        limit = args.synthesis_limit
+        largest = max((p.transitions for p in probe if p.total is not None), default=0)
+        fitted = fit(probe)
+        text += (
+            f"\n### Stock supervisor synthesis versus size (each killed after {limit:g} s)\n\n"
+            + probe_table(probe, limit)
+            + (
+                f"\nLargest size synthesised within {limit:g} s: {largest:,} transitions"
+                if any(p.total is None for p in probe)
+                else f"\nEvery size probed was synthesised within {limit:g} s"
+            )
+            + (f"; time grows about as transitions^{fitted[2]:.1f}.\n" if fitted else ".\n")
+        )
+    args.output.parent.mkdir(parents=True, exist_ok=True)
+    args.output.write_text(text)
+    print(text)
+
+
+if __name__ == "__main__":
+    main()
