@@ -137,6 +137,7 @@ class RunnerState:
     replan_transitions: str = ""
     halted: str = ""  # a model error stopped automatic steps
     watched: bool = False  # every effect has been looked at once (then only changed ones)
+    settled: tuple[Value, ...] | None = None  # the state at the last automatic fixpoint
 
     def copy(self) -> RunnerState:
         """A copy a tick may change without touching this one (expressions, tuples and
@@ -203,6 +204,13 @@ class Runner:
         self.decisions = [v.name for v in self.model.variables if v.kind is VariableKind.DECISION]
         self.effects = [c for c in self.semantics.transitions if c.kind is TransitionKind.EFFECT]
         self.effect_index = {e.name: k for k, e in enumerate(self.effects)}
+        # for each variable (by position), the automatic transitions whose guard reads it
+        self.automatics_reading: list[list[int]] = [[] for _ in self.model.variables]
+        self.automatic_writes: list[list[int]] = []
+        for k, auto in enumerate(self.semantics.automatic):
+            for name in variables_of(auto.transition.guard):
+                self.automatics_reading[index[name]].append(k)
+            self.automatic_writes.append(sorted({index[a.target] for a in auto.transition.actions}))
         # the other effects of the same ability: what may happen instead of an expected one
         self.alternatives: dict[str, frozenset[str]] = {}
         for ability in station.abilities:
@@ -586,20 +594,31 @@ class _Tick:
     # -- 2. automatic transitions --------------------------------------------------------------
 
     def automatic(self) -> None:
+        """Automatic transitions to a fixpoint, the first enabled in model order each time.
+
+        Only those whose guard reads a variable changed since the last fixpoint can be
+        enabled, so only they are looked at."""
         s = self.state
         if s.halted:
             return
+        autos = self.r.semantics.automatic
         state = self.r.as_state(s.values)
+        candidates = self.automatic_candidates(state)
+        fired = False
         for _ in range(self.r.config.max_automatic_steps):
-            for auto in self.r.semantics.automatic:
-                if auto.guard(state):
-                    state = auto.apply(state)
-                    self.emit("taken", auto.name, type="automatic")
-                    self.happened(auto.name)
-                    break
-            else:
-                s.values = self.r.semantics.values(state)
+            chosen = next((k for k in sorted(candidates) if autos[k].guard(state)), None)
+            if chosen is None:
+                if fired:
+                    s.values = self.r.semantics.values(state)
+                s.settled = state
                 return
+            candidates = {k for k in candidates if k >= chosen}  # those before: disabled
+            for position in self.r.automatic_writes[chosen]:
+                candidates.update(self.r.automatics_reading[position])
+            state = autos[chosen].apply(state)
+            fired = True
+            self.emit("taken", autos[chosen].name, type="automatic")
+            self.happened(autos[chosen].name)
         s.halted = "automatic transitions cycle"
         s.values = self.r.semantics.values(state)
         self.emit(
@@ -608,6 +627,20 @@ class _Tick:
             why=f"more than {self.r.config.max_automatic_steps} automatic steps in a row; "
             "automatic steps are halted until the model is fixed",
         )
+
+    def automatic_candidates(self, state: State) -> set[int]:
+        settled = self.state.settled
+        if settled is None:
+            return set(range(len(self.r.semantics.automatic)))
+        candidates: set[int] = set()
+        for position, (before, now) in enumerate(zip(settled, state, strict=True)):
+            if before != now:
+                candidates.update(self.r.automatics_reading[position])
+        return candidates
+
+    def automatic_enabled(self, state: State) -> bool:
+        autos = self.r.semantics.automatic
+        return any(autos[k].guard(state) for k in self.automatic_candidates(state))
 
     def violated(self) -> list[str]:
         return self.r.semantics.violated(self.r.as_state(self.state.values))
@@ -1037,7 +1070,7 @@ class _Tick:
         if name in self.disabled():
             return
         state = self.r.as_state(s.values)
-        if self.r.semantics.automatic_enabled(state) or not chosen.guard(state):
+        if self.automatic_enabled(state) or not chosen.guard(state):
             return
         after = chosen.apply(state)
         if supervised and self.r.tp.sym.contains(self.r.tp.bad, after):
