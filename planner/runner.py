@@ -138,6 +138,7 @@ class RunnerState:
     halted: str = ""  # a model error stopped automatic steps
     watched: bool = False  # every effect has been looked at once (then only changed ones)
     settled: tuple[Value, ...] | None = None  # the state at the last automatic fixpoint
+    consistent: tuple[Value, ...] | None = None  # the last state seen to violate nothing
 
     def copy(self) -> RunnerState:
         """A copy a tick may change without touching this one (expressions, tuples and
@@ -204,6 +205,11 @@ class Runner:
         self.decisions = [v.name for v in self.model.variables if v.kind is VariableKind.DECISION]
         self.effects = [c for c in self.semantics.transitions if c.kind is TransitionKind.EFFECT]
         self.effect_index = {e.name: k for k, e in enumerate(self.effects)}
+        # for each variable (by position), the invariants that read it
+        self.invariants_reading: list[list[int]] = [[] for _ in self.model.variables]
+        for k, spec in enumerate(self.model.specifications):
+            for name in variables_of(spec.invariant):
+                self.invariants_reading[index[name]].append(k)
         # for each variable (by position), the automatic transitions whose guard reads it
         self.automatics_reading: list[list[int]] = [[] for _ in self.model.variables]
         self.automatic_writes: list[list[int]] = []
@@ -332,7 +338,7 @@ class _Tick:
             if not isinstance(other, MaintenanceDone):
                 self.act(other)
         self.automatic()
-        if self.state.recovery is not None or self.violated():
+        if self.state.recovery is not None or self.newly_violated():
             self.recover()
         else:
             self.intentions()
@@ -641,6 +647,25 @@ class _Tick:
     def automatic_enabled(self, state: State) -> bool:
         autos = self.r.semantics.automatic
         return any(autos[k].guard(state) for k in self.automatic_candidates(state))
+
+    def newly_violated(self) -> bool:
+        """Does the state violate a specification?  Since the last state seen to violate
+        none, only invariants reading a changed variable can have become false."""
+        s = self.state
+        state = self.r.as_state(s.values)
+        invariants = self.r.semantics.invariants
+        if s.consistent is None:
+            look: Iterable[int] = range(len(invariants))
+        else:
+            changed: set[int] = set()
+            for position, (before, now) in enumerate(zip(s.consistent, state, strict=True)):
+                if before != now:
+                    changed.update(self.r.invariants_reading[position])
+            look = sorted(changed)
+        if any(not invariants[k][1](state) for k in look):
+            return True
+        s.consistent = state
+        return False
 
     def violated(self) -> list[str]:
         return self.r.semantics.violated(self.r.as_state(self.state.values))
