@@ -129,16 +129,18 @@ class RunnerState:
     effect_since: dict[str, float] = field(default_factory=dict)
     timed_out: set[str] = field(default_factory=set)
     restart: bool = False
-    # restart mode: operations being reset, with the goal of reaching their precondition
-    resets: dict[str, Expr] = field(default_factory=dict)
+    # restart mode: operations being reset, planned to reach their precondition
+    resets: set[str] = field(default_factory=set)
     armed: set[str] = field(default_factory=set)  # intentions allowed to start by themselves
     next_recheck: float = 0.0
     replan_operations: str = ""  # why the operation plan must be made again ("" if not)
     replan_transitions: str = ""
     halted: str = ""  # a model error stopped automatic steps
-    watched: bool = False  # every effect has been looked at once (then only changed ones)
-    settled: tuple[Value, ...] | None = None  # the state at the last automatic fixpoint
-    consistent: tuple[Value, ...] | None = None  # the last state seen to violate nothing
+    # what the incremental checks last looked at (None: look at everything): effects were
+    # watched for time-outs, automatics were at a fixpoint, no invariant was violated
+    watched: State | None = None
+    settled: State | None = None
+    consistent: State | None = None
 
     def copy(self) -> RunnerState:
         """A copy a tick may change without touching this one (expressions, tuples and
@@ -159,7 +161,7 @@ class RunnerState:
             unavailable=set(self.unavailable),
             effect_since=dict(self.effect_since),
             timed_out=set(self.timed_out),
-            resets=dict(self.resets),
+            resets=set(self.resets),
             armed=set(self.armed),
         )
 
@@ -169,6 +171,18 @@ _Plan = TypeVar("_Plan", TransitionPlan, OperationPlan)
 
 def _copied(plan: _Plan | None) -> _Plan | None:
     return None if plan is None else plan.copy()
+
+
+def touched(readers: list[list[int]], before: State | None, now: State) -> set[int] | None:
+    """What reads a variable that differs between the two states (None: no `before`, so
+    everything may have changed); `readers[position]` lists what reads that variable."""
+    if before is None:
+        return None
+    out: set[int] = set()
+    for position, (old, new) in enumerate(zip(before, now, strict=True)):
+        if old != new:
+            out.update(readers[position])
+    return out
 
 
 def assigned(actions: Iterable[Assign], values: Mapping[str, Value]) -> dict[str, Value]:
@@ -225,11 +239,11 @@ class Runner:
                 self.alternatives[name] = self.alternatives.get(name, frozenset()) | (own - {name})
         # which effects a changed variable concerns: those whose guard reads it (to watch
         # them for time-outs) and those that write it (to explain a measured change)
-        self.effects_reading: dict[str, list[int]] = {}
+        self.effects_reading: list[list[int]] = [[] for _ in self.model.variables]
         self.effects_writing: dict[str, list[int]] = {}
         for k, effect in enumerate(self.effects):
             for name in variables_of(effect.transition.guard):
-                self.effects_reading.setdefault(name, []).append(k)
+                self.effects_reading[index[name]].append(k)
             for action in effect.transition.actions:
                 self.effects_writing.setdefault(action.target, []).append(k)
         self.owner: dict[str, str] = {}
@@ -281,7 +295,7 @@ class Runner:
     def tick(
         self, state: RunnerState, inputs: Inputs, now: float
     ) -> tuple[RunnerState, dict[str, Value], list[Event]]:
-        work = _Tick(self, state.copy(), now, state.values)
+        work = _Tick(self, state.copy(), now)
         work.run(inputs)
         commands = {
             name: value
@@ -312,13 +326,10 @@ class Runner:
 class _Tick:
     """One tick's work on a private copy of the state."""
 
-    def __init__(
-        self, runner: Runner, state: RunnerState, now: float, previous: Mapping[str, Value]
-    ) -> None:
+    def __init__(self, runner: Runner, state: RunnerState, now: float) -> None:
         self.r = runner
         self.state = state
         self.now = now
-        self.previous = previous  # the values at the start of the tick
         self.events: list[Event] = []
         self.availability_changed: set[str] = set()
         self.look_again: set[str] = set()  # effects an action re-enabled
@@ -483,7 +494,7 @@ class _Tick:
                 s.replan_operations = s.replan_operations or "reset"
                 self.emit("operator", "reset operation", user=who, operation=name)
                 # seed 001 VIII-A: plan to reach its precondition, to start it again
-                s.resets[name] = self.r.operations[name].precondition
+                s.resets.add(name)
             case ReenableEffect(name=name):
                 if name not in s.timed_out:
                     self.emit("refused", name, user=who, why="the effect is not timed out")
@@ -635,14 +646,8 @@ class _Tick:
         )
 
     def automatic_candidates(self, state: State) -> set[int]:
-        settled = self.state.settled
-        if settled is None:
-            return set(range(len(self.r.semantics.automatic)))
-        candidates: set[int] = set()
-        for position, (before, now) in enumerate(zip(settled, state, strict=True)):
-            if before != now:
-                candidates.update(self.r.automatics_reading[position])
-        return candidates
+        found = touched(self.r.automatics_reading, self.state.settled, state)
+        return set(range(len(self.r.semantics.automatic))) if found is None else found
 
     def automatic_enabled(self, state: State) -> bool:
         autos = self.r.semantics.automatic
@@ -654,14 +659,8 @@ class _Tick:
         s = self.state
         state = self.r.as_state(s.values)
         invariants = self.r.semantics.invariants
-        if s.consistent is None:
-            look: Iterable[int] = range(len(invariants))
-        else:
-            changed: set[int] = set()
-            for position, (before, now) in enumerate(zip(s.consistent, state, strict=True)):
-                if before != now:
-                    changed.update(self.r.invariants_reading[position])
-            look = sorted(changed)
+        found = touched(self.r.invariants_reading, s.consistent, state)
+        look = range(len(invariants)) if found is None else sorted(found)
         if any(not invariants[k][1](state) for k in look):
             return True
         s.consistent = state
@@ -1045,16 +1044,17 @@ class _Tick:
         abilities included) that bring the operations being reset to their preconditions."""
         s = self.state
         for name in sorted(s.resets):
-            if self.r.holds(s.resets[name], s.values):
-                del s.resets[name]
+            if self.r.operation_pre[name](self.r.as_state(s.values)):
+                s.resets.discard(name)
                 self.emit("reset", name, done=True, why="its precondition holds")
         if not s.resets:
             s.transition_plan = None
             return
-        goal = conjunction([s.resets[n] for n in sorted(s.resets)])
+        preconditions = [self.r.operations[n].precondition for n in sorted(s.resets)]
+        goal = conjunction(preconditions)
         plan = s.transition_plan
         if plan is None or plan.goal != goal or not self.plan_reaches(plan):
-            written = {v for n in s.resets for v in variables_of(s.resets[n])}
+            written = {v for p in preconditions for v in variables_of(p)}
             query = replace(
                 self.query(goal, []), forbidden=self.kept(set(self.r.decisions) - written)
             )
@@ -1238,9 +1238,9 @@ class _Tick:
         disabled; the enabled and timed-out ones are looked at every tick."""
         s = self.state
         state = self.r.as_state(s.values)
-        if s.watched:
-            changed = [n for n, v in s.values.items() if self.previous.get(n) != v]
-            look = {k for n in changed for k in self.r.effects_reading.get(n, ())}
+        look = touched(self.r.effects_reading, s.watched, state)
+        s.watched = state
+        if look is not None:
             look |= {self.r.effect_index[n] for n in s.effect_since}
             look |= {self.r.effect_index[n] for n in s.timed_out | self.look_again}
             for resource in self.availability_changed:
@@ -1249,10 +1249,7 @@ class _Tick:
                     for n in self.r.resource_transitions.get(resource, ())
                     if n in self.r.effect_index
                 }
-            effects = [self.r.effects[k] for k in sorted(look)]
-        else:
-            effects = self.r.effects
-            s.watched = True
+        effects = self.r.effects if look is None else [self.r.effects[k] for k in sorted(look)]
         for effect in effects:
             name = effect.name
             owner = self.r.owner.get(name)
