@@ -363,24 +363,16 @@ def play(
     answers: list[tuple[float, Action]] = []  # the simulated operator's actions, when due
     published: dict[str, Value] = dict(state.values)
     while now <= scenario.until:
-        for scheduled in list(pending):
-            due = scheduled.at is not None and now >= scheduled.at
-            if scheduled.when is not None and runner.holds(scheduled.when, state.values):
-                due = True
-            if due:
-                pending.remove(scheduled)
-                world.inject(scheduled.fault)
-                yield Event(now, "fault", scheduled.fault.kind, {"fault": scheduled.text})
+        for scheduled in [f for f in pending if _due(f, now, runner, state.values)]:
+            pending.remove(scheduled)
+            world.inject(scheduled.fault)
+            yield Event(now, "fault", scheduled.fault.kind, {"fault": scheduled.text})
         world.advance(published, now)
-        for scheduled_action in list(scheduled_actions):
-            due = scheduled_action.at is not None and now >= scheduled_action.at
-            if scheduled_action.when is not None and runner.holds(
-                scheduled_action.when, state.values
-            ):
-                due = True
-            if due:
-                scheduled_actions.remove(scheduled_action)
-                answers.append((now, scheduled_action.action))
+        for scheduled_action in [
+            a for a in scheduled_actions if _due(a, now, runner, state.values)
+        ]:
+            scheduled_actions.remove(scheduled_action)
+            answers.append((now, scheduled_action.action))
         actions = tuple(a for t, a in answers if t <= now)
         answers = [(t, a) for t, a in answers if t > now]
         for action in actions:
@@ -402,6 +394,18 @@ def play(
         if speed > 0:
             sleep(step / speed)
     yield Event(now, "stopped", "time limit", {"until": scenario.until})
+
+
+def _due(
+    scheduled: ScheduledFault | ScheduledAction,
+    now: float,
+    runner: Runner,
+    values: Mapping[str, Value],
+) -> bool:
+    """Its time has come, or its condition holds now."""
+    if scheduled.at is not None and now >= scheduled.at:
+        return True
+    return scheduled.when is not None and runner.holds(scheduled.when, values)
 
 
 def _operator_answers(event: Event, scenario: Scenario, now: float) -> list[tuple[float, Action]]:

@@ -444,19 +444,16 @@ class _Tick:
     def act(self, action: Action) -> None:
         s = self.state
         who = action.user
+        if isinstance(action, StartIntention | CancelIntention) and action.name not in s.intentions:
+            self.emit("refused", action.name, user=who, why="there is no such intention")
+            return
         match action:
             case StartIntention(name=name):
-                if name not in s.intentions:
-                    self.emit("refused", name, user=who, why="there is no such intention")
-                    return
                 s.armed.add(name)
                 if s.intentions[name] in ("f", "error"):
                     s.intentions[name] = "i"
                 self.emit("operator", "start intention", user=who, intention=name)
             case CancelIntention(name=name):
-                if name not in s.intentions:
-                    self.emit("refused", name, user=who, why="there is no such intention")
-                    return
                 s.armed.discard(name)
                 if s.intentions[name] in ("e", "error"):
                     self.set_intention(name, "i", "cancelled")
