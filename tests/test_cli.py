@@ -176,3 +176,27 @@ def test_restart_abilities_only_in_restart_mode(tmp_path: Path) -> None:
     restart = json.loads(sp(*args, "--restart").stdout)
     assert normal["plan"] == ["nr.run_nut.spin_down", "r1.goto_home", "r1.goto.arrive"]
     assert restart["plan"] == ["r1.back_home", "r1.goto.arrive"]
+
+
+DEMO = Path(__file__).parent.parent / "models" / "demo_station.yaml"
+SCENARIOS = sorted((DEMO.parent / "scenarios").glob("e*.yaml"))
+
+
+def test_run_plays_each_table_1_experiment_to_the_end() -> None:
+    assert len(SCENARIOS) == 9
+    for scenario in SCENARIOS:
+        done = sp("run", str(DEMO), "--scenario", str(scenario), "--speed", "0", "--json")
+        assert done.returncode == 0, (scenario.name, done.stderr[-2000:])
+        events = [json.loads(line) for line in done.stdout.splitlines()]
+        assert any(e["kind"] == "fault" for e in events)
+        assert events[-1]["kind"] == "done", (scenario.name, events[-5:])
+        plans = [e for e in events if e["kind"] == "plan"]
+        assert plans and all("millis" in e for e in plans)  # planning is timed in the log
+
+
+def test_run_with_a_bad_scenario_exits_2_naming_file_line_column(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("intentions: [tighten_bolts]\nfaults:\n  - {at: soon, kind: set}\n")
+    done = sp("run", str(DEMO), "--scenario", str(bad), "--speed", "0")
+    assert done.returncode == 2
+    assert f"{bad}:3:10: faults[0].at: 'soon' is not a number" in done.stderr
