@@ -37,6 +37,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _plan(args, started)
         if args.command == "run":
             return _run(args)
+        if args.command == "serve":
+            return _serve(args)
+        if args.command == "audit":
+            return _audit(args)
         return _check(args)
     except ModelError as exc:
         for diagnostic in exc.diagnostics:
@@ -97,7 +101,77 @@ def _parser() -> argparse.ArgumentParser:
             help="synthesise the supervisor anew instead of reusing the one saved for this "
             "model text (in $SP_CACHE_DIR or ~/.cache/sequence-planner)",
         )
+    serve = commands.add_parser(
+        "serve", help="run the station: runner, simulated devices, web HMI and store"
+    )
+    serve.add_argument("--model", default="models/demo_station.yaml", help="model file (YAML)")
+    serve.add_argument("--db", default="sqlite:///station.db", help="database URL")
+    serve.add_argument("--host", default="127.0.0.1")
+    serve.add_argument("--port", type=int, default=8000)
+    serve.add_argument("--period", type=float, default=0.1, help="runner tick period, seconds")
+    serve.add_argument(
+        "--speed",
+        type=float,
+        default=1.0,
+        help="simulated time runs X times faster than real time (demos and tests)",
+    )
+    serve.add_argument(
+        "--secure-cookies", action="store_true", help="session cookies over HTTPS only"
+    )
+    serve.add_argument("--no-cache", action="store_true", help="do not reuse saved supervisors")
+    audit = commands.add_parser("audit", help="check the audit log")
+    audit_commands = audit.add_subparsers(dest="audit_command", required=True)
+    verify = audit_commands.add_parser("verify", help="recompute the hash chain; exit 1 if broken")
+    verify.add_argument("--db", default="sqlite:///station.db", help="database URL")
     return parser
+
+
+def _serve(args: argparse.Namespace) -> int:
+    import uvicorn
+
+    from app.serve import build, default_cache
+
+    model = Path(args.model)
+    if not model.exists():
+        raise UsageError(f"{args.model}: no such model file")
+    if args.period <= 0:
+        raise UsageError("--period must be more than 0")
+    if not 0 < args.speed <= 100:
+        raise UsageError("--speed must be more than 0 and at most 100")
+    print(f"starting the station on http://{args.host}:{args.port} (store: {args.db})", flush=True)
+    built = build(
+        model,
+        args.db,
+        cache=None if args.no_cache else default_cache(),
+        period=args.period,
+        speed=args.speed,
+        secure_cookies=args.secure_cookies,
+    )
+    if built.seeded:
+        print("demo users (first-login passwords; each must be changed on first sign-in):")
+        for name, role, password in built.seeded:
+            print(f"  {name:<10} {role:<10} {password}")
+    built.server.live.start()
+    try:
+        uvicorn.run(built.app, host=args.host, port=args.port, log_level="warning")
+    finally:
+        built.server.live.stop()
+    return 0
+
+
+def _audit(args: argparse.Namespace) -> int:
+    from app.serve import audit_verify
+    from app.store.db import open_store
+
+    store = open_store(args.db)
+    count, problems, head = audit_verify(store)
+    for problem in problems:
+        print(f"tampered: {problem}")
+    if problems:
+        print(f"audit log BROKEN: {len(problems)} problem(s) in {count} records")
+        return 1
+    print(f"audit log intact: {count} records, newest hash {head}")
+    return 0
 
 
 def _non_negative(text: str) -> int:

@@ -49,6 +49,7 @@ class SimulatedWorld:
         delays: Mapping[str, float] | None = None,
         default_delay: float = 1.0,
         start: Mapping[str, Value] | None = None,
+        manual: frozenset[str] = frozenset(),
     ) -> None:
         self.station = station
         self.model = station.model
@@ -69,7 +70,13 @@ class SimulatedWorld:
         self.blocked: set[str] = set()
         self.replaced: dict[str, tuple[str, int]] = {}
         self.pending: dict[str, float] = {}  # effect -> when it happens
-        self.effects = [c for c in self.semantics.transitions if c.kind is TransitionKind.EFFECT]
+        # effects a person performs (a tap on the watch): never played by the world itself
+        self.manual = manual
+        self.effects = [
+            c
+            for c in self.semantics.transitions
+            if c.kind is TransitionKind.EFFECT and c.name not in manual
+        ]
 
     def delay(self, effect: str) -> float:
         if effect in self.delays:
@@ -103,6 +110,53 @@ class SimulatedWorld:
         after = self.semantics.values(chosen.apply(self.semantics.state(self.values)))
         for name, value in after.items():
             self.values[name] = value
+
+    def perform(self, effect: str) -> bool:
+        """A person did effect `effect` (e.g. confirmed a card): applied if its guard holds."""
+        chosen = self.semantics.by_name.get(effect)
+        if chosen is None or chosen.kind is not TransitionKind.EFFECT:
+            raise ValueError(f"'{effect}' is not an effect transition")
+        state = self.semantics.state(self.values)
+        if not chosen.guard(state):
+            return False
+        after = self.semantics.values(chosen.apply(state))
+        for name in self.measured:
+            self.values[name] = after[name]
+        return True
+
+    def dump(self, now: float) -> dict[str, object]:
+        """The devices' state as JSON-ready data (pending effects relative to `now`)."""
+        return {
+            "values": dict(self.values),
+            "observed": dict(self.observed),
+            "disconnected": sorted(self.disconnected),
+            "blocked": sorted(self.blocked),
+            "replaced": {k: [v[0], v[1]] for k, v in sorted(self.replaced.items())},
+            "pending": {k: max(0.0, t - now) for k, t in sorted(self.pending.items())},
+        }
+
+    def load(self, data: Mapping[str, object], now: float) -> None:
+        """Resume from `dump` output; names the model no longer has are dropped."""
+        known = set(self.values)
+        values = data.get("values", {})
+        if isinstance(values, Mapping):
+            for name, value in values.items():
+                if name in known and value in self.model.variable(name).domain:
+                    self.values[name] = value
+        effects = set(self.semantics.by_name)
+        resources = set(self.resource_variables)
+        self.disconnected = {r for r in _strings(data.get("disconnected")) if r in resources}
+        self.blocked = {e for e in _strings(data.get("blocked")) if e in effects}
+        replaced = data.get("replaced", {})
+        if isinstance(replaced, Mapping):
+            self.replaced = {
+                k: (str(v[0]), int(v[1]))
+                for k, v in replaced.items()
+                if k in effects and str(v[0]) in effects
+            }
+        pending = data.get("pending", {})
+        if isinstance(pending, Mapping):
+            self.pending = {k: now + float(t) for k, t in pending.items() if k in effects}
 
     def advance(self, published: Mapping[str, Value], now: float) -> None:
         """Let the devices act on the runner's published state up to time `now`."""
@@ -146,3 +200,7 @@ class SimulatedWorld:
         observed, self.observed = self.observed, {}
         heartbeats = frozenset(r.name for r in self.station.resources) - self.disconnected
         return Inputs(measured=measured, observed=observed, heartbeats=heartbeats)
+
+
+def _strings(value: object) -> list[str]:
+    return [str(v) for v in value] if isinstance(value, list) else []

@@ -76,6 +76,7 @@ class Ability:
     predicates: dict[str, Expr]
     transitions: tuple[str, ...]
     restart: bool = False
+    description: str = ""  # plain words, with the parameter's value filled in
 
     @property
     def qualified(self) -> str:
@@ -367,6 +368,7 @@ def _read_ability(
         if parameter
         else [(template, None, {})]
     )
+    description = _description(reader, fields)
     restart = False
     if "restart" in fields:
         restart = (reader.scalar(fields["restart"][1], "restart") or "").lower() == "true"
@@ -416,7 +418,7 @@ def _read_ability(
                 generic.add(first.name)
 
     compiled: list[tuple[Ability, list[tuple[Transition, yaml.Node]]]] = []
-    for k, (instance, value, _values) in enumerate(instances):
+    for k, (instance, value, values) in enumerate(instances):
         result: list[tuple[Transition, yaml.Node]] = []
         for t, t_node in per_instance[k]:
             if t.name == "start":
@@ -434,6 +436,7 @@ def _read_ability(
             instance_predicates[k],
             tuple(t.name for t, _ in result),
             restart,
+            _filled(description, values),
         )
         compiled.append((ability, result))
     return compiled
@@ -526,7 +529,7 @@ def _read_operation(
         )
         if pre is None or goal is None or effects is None or actions is None:
             continue
-        result.append(Operation(name, pre, effects, goal, actions, description))
+        result.append(Operation(name, pre, effects, goal, actions, _filled(description, values)))
     return result
 
 
@@ -559,6 +562,13 @@ def _optional_expr(
     if key not in fields:
         return TRUE
     return reader.expression(fields[key][1], scope, f"the {key} of {where}", values)
+
+
+def _filled(description: str, values: Mapping[str, str]) -> str:
+    """A template's description for one parameter value: `{bp}` becomes `bp3`."""
+    for key, value in values.items():
+        description = description.replace("{" + key + "}", value)
+    return description
 
 
 def _description(reader: Reader, fields: Fields) -> str:

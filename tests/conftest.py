@@ -16,3 +16,52 @@ if "SP_CACHE_DIR" not in os.environ:
     import tempfile
 
     os.environ["SP_CACHE_DIR"] = tempfile.mkdtemp(prefix="sp-test-cache-")
+
+
+import pytest  # noqa: E402
+
+
+@pytest.fixture
+def station(tmp_path):  # type: ignore[no-untyped-def]
+    """A running demo station on a fresh SQLite file (in-process; `station.serve()` for a
+    real HTTP server)."""
+    from tests.stations import start_station
+
+    running = start_station(tmp_path)
+    yield running
+    running.stop()
+
+
+CHROMIUM = "/usr/bin/chromium"  # Debian's; scripts/install puts it there, never a download
+CHROMIUM_ARGS = [
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+]
+
+
+@pytest.fixture(scope="session")
+def browser():  # type: ignore[no-untyped-def]
+    """One headless Chromium for the session, driven by Playwright."""
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as playwright:
+        launched = playwright.chromium.launch(
+            executable_path=CHROMIUM, headless=True, args=CHROMIUM_ARGS
+        )
+        yield launched
+        launched.close()
+
+
+@pytest.fixture
+def served(tmp_path):  # type: ignore[no-untyped-def]
+    """A running demo station served by uvicorn on 127.0.0.1 (for the browser tests)."""
+    from tests.stations import start_station
+
+    running = start_station(tmp_path)
+    running.serve()
+    yield running
+    running.stop()

@@ -1,0 +1,314 @@
+"""The station's alarms in the ISA-18.2 sense: the runner's errors that need a person.
+
+`conditions` reads the runner's state after a tick and says which alarm conditions hold;
+`AlarmBook` keeps one record per condition key through the ISA-18.2 states and reports every
+state change as an `AlarmChange`, so the audit log and the operator pages read the same
+history.  Pure: no I/O, and time is passed in as `now` (seconds since the epoch).
+
+    condition appears        none / NORMAL -> UNACKED;  RTN_UNACKED -> UNACKED
+    acknowledged             UNACKED -> ACKED;          RTN_UNACKED -> NORMAL
+    condition clears         UNACKED -> RTN_UNACKED;    ACKED -> NORMAL
+    shelved (time-limited)   any but SHELVED -> SHELVED
+    unshelved / expired      SHELVED -> UNACKED if the condition holds, else NORMAL
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, replace
+from enum import StrEnum
+
+from planner.expressions import variables_of
+from planner.runner import Runner, RunnerState
+
+SHELVE_LIMIT = 8 * 60.0  # minutes: a shelved alarm comes back within a shift
+
+
+class Priority(StrEnum):
+    CRITICAL = "critical"
+    HIGH = "high"
+    MEDIUM = "medium"
+    LOW = "low"
+
+    @property
+    def rank(self) -> int:
+        """0 for the most urgent, for sorting."""
+        return list(Priority).index(self)
+
+
+class AlarmState(StrEnum):
+    UNACKED = "unacknowledged"
+    ACKED = "acknowledged"
+    RTN_UNACKED = "returned (unacknowledged)"
+    NORMAL = "normal"
+    SHELVED = "shelved"
+
+
+@dataclass(frozen=True, slots=True)
+class Condition:
+    """An alarm condition that holds now; `key` is its identity across ticks."""
+
+    key: str  # "forbidden", "halted", "resource:r2", "intention:X", "operation:X", "effect:X"
+    priority: Priority
+    message: str  # plain words for an operator: what is wrong and what it affects
+    resource: str = ""  # the resource it concerns, for the audit log's filter ("" if none)
+
+
+def conditions(runner: Runner, state: RunnerState) -> dict[str, Condition]:
+    """The alarm conditions of a runner state, in words from the model's descriptions."""
+    out: dict[str, Condition] = {}
+
+    def add(key: str, priority: Priority, message: str, resource: str = "") -> None:
+        out[key] = Condition(key, priority, message, resource)
+
+    if state.halted:
+        add(
+            "halted",
+            Priority.CRITICAL,
+            f"automatic steps are halted ({state.halted}); "
+            "the station model needs an engineer's fix",
+        )
+    violated = runner.semantics.violated(runner.as_state(state.values))
+    if violated or state.recovery is not None:
+        specs = ", ".join(violated or sorted(state.relaxed)) or "a specification"
+        if state.recovery is None:
+            what = "no recovery plan was found; the station needs a person"
+        elif violated:
+            what = "recovery in progress: approve its steps"
+        else:
+            what = "the specifications hold again; approve the rest of the recovery"
+        add("forbidden", Priority.CRITICAL, f"forbidden state: {specs} violated; {what}")
+    resources = {r.name: r for r in runner.station.resources}
+    for name in sorted(state.unavailable):
+        about = resources[name].description if name in resources else ""
+        add(
+            f"resource:{name}",
+            Priority.HIGH,
+            f"{name} is not answering (no heartbeat)"
+            + (f": {about}" if about else "")
+            + "; its transitions are disabled until it answers",
+            name,
+        )
+    for name, st in sorted(state.intentions.items()):
+        if st == "error":
+            what = "no plan of operations reaches its goal"
+            waiting = "; maintenance steps wait on the task cards" if state.maintenance else ""
+            about = runner.intentions[name].description
+            add(
+                f"intention:{name}", Priority.HIGH, _words("intention", name, about, what) + waiting
+            )
+    # an operation in error matters while production needs the station: once no intention is
+    # executing it waits, harmless, until the background check clears it (E6 leaves one so)
+    if any(st in ("e", "error") for st in state.intentions.values()):
+        for name, st in sorted(state.operations.items()):
+            if st == "error":
+                add(
+                    f"operation:{name}",
+                    Priority.MEDIUM,
+                    _operation_message(runner, state, name),
+                    _operation_resource(runner, name),
+                )
+    for name in sorted(state.timed_out):
+        about = runner.model.transition(name).description
+        what = "it did not happen in time; planning leaves it out until it is re-enabled"
+        add(
+            f"effect:{name}",
+            Priority.LOW,
+            _words("effect", name, about, what),
+            runner.owner.get(name, ""),
+        )
+    return out
+
+
+def _words(kind: str, name: str, description: str, what: str) -> str:
+    """The model's plain words first, then the name an engineer looks up."""
+    if kind != "effect":
+        what = f"in error, {what}"
+    return f"{description}: {what} ({kind} {name})" if description else f"{kind} {name}: {what}"
+
+
+def _operation_message(runner: Runner, state: RunnerState, name: str) -> str:
+    failures = state.failures.get(name, 0)
+    what = "its goal cannot be reached"
+    if failures >= runner.config.retries:
+        what += f"; it failed {failures} times and is not retried"
+    return _words("operation", name, runner.operations[name].description, what)
+
+
+def _operation_resource(runner: Runner, name: str) -> str:
+    """The one resource owning what the operation changes, or "" when several or none do
+    (operations do not name their resources; get_nr_r2 changes nr, r2_tc and r2_cam)."""
+    operation = runner.operations[name]
+    changed = variables_of(operation.goal) | {a.target for a in operation.effects}
+    owners = {r.name for r in runner.station.resources if changed & set(r.variables)}
+    return owners.pop() if len(owners) == 1 else ""
+
+
+@dataclass(slots=True)
+class Alarm:
+    """One alarm's record, kept by the book and persisted as one row per key."""
+
+    key: str
+    priority: Priority
+    message: str
+    resource: str
+    state: AlarmState
+    active: bool  # its condition holds
+    raised_at: float  # when the condition last appeared
+    returned_at: float | None = None  # when it last cleared
+    acked_by: str | None = None
+    acked_at: float | None = None
+    note: str = ""  # the last note a person gave (acknowledge or shelve)
+    shelved_by: str | None = None
+    shelved_until: float | None = None
+    # the state it was shelved from, for the record: unshelving follows the condition
+    shelved_state: AlarmState | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class AlarmChange:
+    """A state change for the audit log; `note` is the person's note, or why for automatic
+    changes (user None): "condition appeared", "condition cleared", "shelve expired"."""
+
+    key: str
+    before: AlarmState | None  # None: a new alarm
+    after: AlarmState
+    user: str | None
+    note: str
+    at: float
+    alarm: Alarm  # a copy, as it is after the change
+
+
+class AlarmError(Exception):
+    """An operator's request the book refuses; the message says what to do instead."""
+
+
+class AlarmBook:
+    """Every alarm the station has had, one record per key, through the ISA-18.2 states."""
+
+    def __init__(self, alarms: Iterable[Alarm] = ()) -> None:
+        self._alarms: dict[str, Alarm] = {}
+        for alarm in alarms:
+            if alarm.key in self._alarms:
+                raise AlarmError(f"two alarms with key {alarm.key}")
+            self._alarms[alarm.key] = replace(alarm)
+
+    def update(self, conditions: Mapping[str, Condition], now: float) -> list[AlarmChange]:
+        """Follow the conditions that hold now; expire shelves that ran out."""
+        changes: list[AlarmChange] = []
+        for key in sorted(conditions):
+            condition = conditions[key]
+            alarm = self._alarms.get(key)
+            new = alarm is None
+            if alarm is None:
+                alarm = Alarm(key, condition.priority, "", "", AlarmState.NORMAL, False, now)
+                self._alarms[key] = alarm
+            alarm.priority, alarm.message = condition.priority, condition.message
+            alarm.resource = condition.resource
+            if alarm.active:
+                continue
+            alarm.active, alarm.raised_at, alarm.returned_at = True, now, None
+            if alarm.state is not AlarmState.SHELVED:
+                change = self._move(alarm, AlarmState.UNACKED, None, "condition appeared", now)
+                changes.append(replace(change, before=None) if new else change)
+        for key in sorted(self._alarms):
+            alarm = self._alarms[key]
+            if alarm.active and key not in conditions:
+                alarm.active, alarm.returned_at = False, now
+                if alarm.state is not AlarmState.SHELVED:
+                    after = (
+                        AlarmState.NORMAL
+                        if alarm.state is AlarmState.ACKED
+                        else AlarmState.RTN_UNACKED
+                    )
+                    changes.append(self._move(alarm, after, None, "condition cleared", now))
+            until = alarm.shelved_until
+            if alarm.state is AlarmState.SHELVED and until is not None and now >= until:
+                changes.append(self._unshelve(alarm, None, "shelve expired", now))
+        return changes
+
+    def acknowledge(self, key: str, user: str, note: str, now: float) -> AlarmChange:
+        alarm = self._get(key)
+        _need_user(user, "acknowledge")
+        if alarm.state is AlarmState.UNACKED:
+            after = AlarmState.ACKED
+        elif alarm.state is AlarmState.RTN_UNACKED:
+            after = AlarmState.NORMAL
+        elif alarm.state is AlarmState.SHELVED:
+            raise AlarmError(f"alarm {key} is shelved; unshelve it to acknowledge it")
+        elif alarm.state is AlarmState.ACKED:
+            raise AlarmError(f"alarm {key} is already acknowledged")
+        else:
+            raise AlarmError(f"alarm {key} is normal: there is nothing to acknowledge")
+        alarm.acked_by, alarm.acked_at, alarm.note = user, now, note
+        return self._move(alarm, after, user, note, now)
+
+    def shelve(self, key: str, user: str, minutes: float, note: str, now: float) -> AlarmChange:
+        """Hide an alarm from the operator's list for a while (a chattering or known one)."""
+        alarm = self._get(key)
+        _need_user(user, "shelve")
+        if not 1 <= minutes <= SHELVE_LIMIT:  # NaN fails too
+            raise AlarmError(f"shelve for 1 to {SHELVE_LIMIT:g} minutes, not {minutes:g}")
+        if alarm.state is AlarmState.SHELVED:
+            raise AlarmError(f"alarm {key} is already shelved; unshelve it first")
+        alarm.shelved_by, alarm.shelved_until = user, now + 60 * minutes
+        alarm.shelved_state, alarm.note = alarm.state, note
+        return self._move(alarm, AlarmState.SHELVED, user, note, now)
+
+    def unshelve(self, key: str, user: str, now: float) -> AlarmChange:
+        alarm = self._get(key)
+        _need_user(user, "unshelve")
+        if alarm.state is not AlarmState.SHELVED:
+            raise AlarmError(f"alarm {key} is not shelved")
+        return self._unshelve(alarm, user, "unshelved", now)
+
+    def alarms(self, include_normal: bool = False, include_shelved: bool = False) -> list[Alarm]:
+        """Copies, active unacknowledged first, then by priority, then newest."""
+        shown = [
+            a
+            for a in self._alarms.values()
+            if (include_normal or a.state is not AlarmState.NORMAL)
+            and (include_shelved or a.state is not AlarmState.SHELVED)
+        ]
+        shown.sort(
+            key=lambda a: (a.state is not AlarmState.UNACKED, a.priority.rank, -a.raised_at, a.key)
+        )
+        return [replace(a) for a in shown]
+
+    def alarm(self, key: str) -> Alarm:
+        return replace(self._get(key))
+
+    def active_count(self) -> int:
+        """Active alarms the operator sees (shelved ones are hidden)."""
+        return sum(a.active and a.state is not AlarmState.SHELVED for a in self._alarms.values())
+
+    def unacknowledged_count(self) -> int:
+        unacked = (AlarmState.UNACKED, AlarmState.RTN_UNACKED)
+        return sum(a.state in unacked for a in self._alarms.values())
+
+    def _get(self, key: str) -> Alarm:
+        alarm = self._alarms.get(key)
+        if alarm is None:
+            raise AlarmError(f"no alarm {key}")
+        return alarm
+
+    def _unshelve(self, alarm: Alarm, user: str | None, note: str, now: float) -> AlarmChange:
+        alarm.shelved_by = alarm.shelved_until = alarm.shelved_state = None
+        after = AlarmState.UNACKED if alarm.active else AlarmState.NORMAL
+        return self._move(alarm, after, user, note, now)
+
+    @staticmethod
+    def _move(
+        alarm: Alarm, after: AlarmState, user: str | None, note: str, now: float
+    ) -> AlarmChange:
+        """The one place an alarm's state changes, so every change is reported."""
+        if after is AlarmState.UNACKED:  # a new occurrence: the last one's answer is history
+            alarm.acked_by = alarm.acked_at = None
+            alarm.note = ""
+        before, alarm.state = alarm.state, after
+        return AlarmChange(alarm.key, before, after, user, note, now, replace(alarm))
+
+
+def _need_user(user: str, what: str) -> None:
+    if not user.strip():
+        raise AlarmError(f"say who you are to {what} an alarm")

@@ -1,0 +1,124 @@
+"""Starting a station process: store, active model, live station, web application.
+
+`sp serve` calls `build`, prints the seeded users, and runs uvicorn; tests do the same
+through a real subprocess.
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from fastapi import FastAPI
+
+from app import supervisor_cache
+from app.auth import ApiTokens, secret_key, seed_demo_users
+from app.live_station import LiveStation, build_model
+from app.scenario import Scenario, ScenarioError, load_scenario
+from app.store import versions
+from app.store.db import Store, open_store
+from app.views import task_cards
+from app.web.app import create_app
+from app.web.server import ROOT, Server
+from planner.station import Station
+
+log = logging.getLogger(__name__)
+SCENARIOS = ROOT / "models" / "scenarios"
+
+
+@dataclass
+class Built:
+    app: FastAPI
+    server: Server
+    seeded: list[tuple[str, str, str]]
+
+
+def build(
+    model_path: Path,
+    url: str,
+    *,
+    station_name: str | None = None,
+    cache: Path | None = None,
+    simulated: bool = True,
+    period: float = 0.1,
+    speed: float = 1.0,
+    secure_cookies: bool = False,
+    seed_users: bool = True,
+) -> Built:
+    """Open (and migrate) the store, load the active model, restore the station, make the app."""
+    store = open_store(url)
+    store.upgrade()
+    text = model_path.read_text(encoding="utf-8")
+    name = station_name or _station_name(text, model_path)
+    with store.sessions.begin() as session:
+        version = versions.ensure_active(session, name, text, "sp serve")
+        seeded = seed_demo_users(session) if seed_users else []
+        key = secret_key(session)
+    model = build_model(version, cache)
+    live = LiveStation(
+        store, name, model, simulated=simulated, period=period, clock=_scaled_clock(speed)
+    )
+    live.watch_area("tasks", task_cards)
+    server = Server(
+        store,
+        live,
+        ApiTokens(key),
+        cache,
+        experiments=experiments(model.station) if simulated else {},
+        secure_cookies=secure_cookies,
+    )
+    return Built(create_app(server, key), server, seeded)
+
+
+def _scaled_clock(speed: float) -> Callable[[], float]:
+    """The runner's clock: real time, or faster for demos and tests of simulated stations."""
+    if speed == 1.0:
+        return time.monotonic
+    return lambda: time.monotonic() * speed
+
+
+def _station_name(text: str, path: Path) -> str:
+    found = re.search(r"^station:\s*([A-Za-z_][A-Za-z0-9_]*)", text, re.MULTILINE)
+    return found.group(1) if found else path.stem
+
+
+def default_cache() -> Path:
+    return supervisor_cache.default_directory()
+
+
+TITLES = {
+    "e1_bolt_undone": "E1: a tightened bolt pair is undone by hand",
+    "e2_oil_filter_early": "E2: oil filters mounted before the bolts are tightened",
+    "e3_lock_fails_on_attach": "E3: r1's tool lock never confirms",
+    "e4_lock_fails_on_release": "E4: r1's tool release never confirms",
+    "e5_r2_disconnects_clear": "E5: r2 stops answering, at home",
+    "e6_r2_disconnects_above_engine": "E6: r2 stops answering above the engine",
+    "e7_r2_disconnects_holding_tool": "E7: r2 stops answering holding the nutrunner",
+    "e8_camera_miss": "E8: the camera does not find the tool",
+    "e9_torque_not_reached": "E9: the nutrunner does not reach its torque",
+}
+
+
+def experiments(station: Station) -> dict[str, tuple[str, Scenario]]:
+    """The E1-E9 scenarios, for the simulation panel (those that fit the active model)."""
+    found: dict[str, tuple[str, Scenario]] = {}
+    for path in sorted(SCENARIOS.glob("e*.yaml")):
+        try:
+            scenario = load_scenario(path.read_text(encoding="utf-8"), str(path), station)
+        except ScenarioError as exc:
+            log.warning("experiment %s does not fit the model: %s", path.name, exc)
+            continue
+        found[path.stem] = (TITLES.get(path.stem, path.stem), scenario)
+    return found
+
+
+def audit_verify(store: Store) -> tuple[int, list[str], str]:
+    from app.store import audit
+
+    with store.sessions() as session:
+        result = audit.verify(audit.all_records(session))
+    return result.count, result.problems, result.head

@@ -1,0 +1,1 @@
+"""The station's durable store: SQLAlchemy 2 tables, the engine, the append-only audit log."""

@@ -1,0 +1,101 @@
+"""Tables of the station store (SQLAlchemy 2, portable between SQLite and PostgreSQL).
+
+Times are seconds since the epoch (UTC) as floats: portable, sortable, and what the audit
+chain hashes.  JSON payloads are text, so that the hash of a record does not depend on how a
+database renders JSON.
+"""
+
+from __future__ import annotations
+
+from sqlalchemy import Boolean, Float, ForeignKey, Index, Integer, String, Text
+from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
+
+
+class Base(DeclarativeBase):
+    pass
+
+
+class User(Base):
+    __tablename__ = "users"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    name: Mapped[str] = mapped_column(String(64), unique=True)
+    role: Mapped[str] = mapped_column(String(16))  # operator, engineer, auditor, admin
+    password_hash: Mapped[str] = mapped_column(String(256))
+    must_change_password: Mapped[bool] = mapped_column(Boolean, default=True)
+    disabled: Mapped[bool] = mapped_column(Boolean, default=False)
+    created_at: Mapped[float] = mapped_column(Float)
+
+
+class ModelVersion(Base):
+    """A saved text of a station model; versions are never changed, only added."""
+
+    __tablename__ = "model_versions"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    station: Mapped[str] = mapped_column(String(64))
+    number: Mapped[int] = mapped_column(Integer)  # 1, 2, ... per station
+    text: Mapped[str] = mapped_column(Text)
+    sha256: Mapped[str] = mapped_column(String(64))
+    author: Mapped[str] = mapped_column(String(64))
+    note: Mapped[str] = mapped_column(Text, default="")
+    created_at: Mapped[float] = mapped_column(Float)
+
+    __table_args__ = (Index("ix_model_versions_station_number", "station", "number", unique=True),)
+
+
+class StationRecord(Base):
+    """One row per station: its active model version and the runner's last durable state."""
+
+    __tablename__ = "stations"
+
+    name: Mapped[str] = mapped_column(String(64), primary_key=True)
+    active_version_id: Mapped[int | None] = mapped_column(ForeignKey("model_versions.id"))
+    snapshot: Mapped[str] = mapped_column(Text, default="")  # runner_snapshot.dump as JSON
+    world: Mapped[str] = mapped_column(Text, default="")  # the simulated devices' state, if any
+    updated_at: Mapped[float] = mapped_column(Float)
+
+
+class AlarmRecord(Base):
+    """The alarm book's rows (app.alarms.Alarm), kept so that alarm states survive a restart."""
+
+    __tablename__ = "alarms"
+
+    station: Mapped[str] = mapped_column(String(64), primary_key=True)
+    key: Mapped[str] = mapped_column(String(200), primary_key=True)
+    data: Mapped[str] = mapped_column(Text)  # the Alarm's fields as JSON
+    updated_at: Mapped[float] = mapped_column(Float)
+
+
+class AuditRecord(Base):
+    """One audit event.  Append-only: the code has no update or delete path, the migration
+    adds triggers that refuse both, and each record carries the hash of the one before."""
+
+    __tablename__ = "audit"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    time: Mapped[float] = mapped_column(Float)
+    station: Mapped[str] = mapped_column(String(64))
+    user: Mapped[str] = mapped_column(String(64), default="")  # "" for the station itself
+    kind: Mapped[str] = mapped_column(String(32))
+    subject: Mapped[str] = mapped_column(String(200), default="")
+    resource: Mapped[str] = mapped_column(String(64), default="")
+    detail: Mapped[str] = mapped_column(Text, default="{}")  # JSON
+    previous: Mapped[str] = mapped_column(String(64))  # hash of the record before ("0"*64 first)
+    hash: Mapped[str] = mapped_column(String(64))
+
+    __table_args__ = (
+        Index("ix_audit_time", "time"),
+        Index("ix_audit_kind", "kind"),
+        Index("ix_audit_user", "user"),
+        Index("ix_audit_resource", "resource"),
+    )
+
+
+class Setting(Base):
+    """Station-wide secrets and settings (the session signing key)."""
+
+    __tablename__ = "settings"
+
+    key: Mapped[str] = mapped_column(String(64), primary_key=True)
+    value: Mapped[str] = mapped_column(Text)

@@ -1,0 +1,161 @@
+"""What the pages show, read off the runner's state: task cards and the station overview.
+
+Pure functions of a `StationView`; no control logic (the runner decides, this only reads).
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+from app.live_station import StationView
+from planner.model import TransitionKind
+from planner.runner import TransitionPlan
+from planner.runner_io import Event
+
+
+@dataclass(frozen=True)
+class TaskCard:
+    """One thing a person must do now, with one action.
+
+    kind: "command" (the watch card of an operation: tap Done when done), "instruction"
+    (a maintenance step after an error: do it, then Done), "approval" (a forbidden-state
+    recovery step: approve or reject before anything runs).
+    """
+
+    kind: str
+    key: str  # stable, for the page's DOM and the tests
+    title: str
+    why: str
+    detail: str = ""
+    card: str = ""  # command: the card value Done confirms
+    transition: str = ""  # instruction, approval: the maintenance or recovery step
+    step: int = 0  # approval: the recovery plan's step; instruction: k of `of`
+    of: int = 0
+
+
+def task_cards(view: StationView) -> list[TaskCard]:
+    """Approvals first (nothing runs without them), then instructions, then the watch card."""
+    return [*_approvals(view), *_instructions(view), *_command_cards(view)]
+
+
+def sentence(text: str) -> str:
+    """Plain words for a person: capitalised, without the model's references to the papers
+    and experiments ("(seed 003 PlaceBolt_i)", "(E6, E7)")."""
+    text = _REFERENCE.sub("", text).strip()
+    return text[:1].upper() + text[1:] if text else text
+
+
+_REFERENCE = re.compile(r"\s*\((?:seed \d+[^)]*|E\d[^)]*)\)")
+
+
+def _executing(view: StationView) -> list[str]:
+    ops = view.model.station.operations
+    return [o.description or o.name for o in ops if view.state.operations.get(o.name) == "e"]
+
+
+def _command_cards(view: StationView) -> list[TaskCard]:
+    values = view.state.values
+    card = values.get("operator.card")
+    if card in (None, "idle") or values.get("operator.done") != "idle":
+        return []
+    for ability in view.model.station.abilities:
+        executing = ability.predicates.get("executing")
+        if ability.resource == "operator" and executing and view.runner.holds(executing, values):
+            title = sentence(ability.description or ability.name.replace("_", " "))
+            break
+    else:
+        title = sentence(str(card).replace("_", " "))
+    why = "; ".join(_executing(view)) or "the operation plan asks for it"
+    return [TaskCard("command", f"card-{card}", title, sentence(why), card=str(card))]
+
+
+def _instructions(view: StationView) -> list[TaskCard]:
+    s = view.state
+    cards = []
+    plans: list[tuple[TransitionPlan | None, str]] = [(s.maintenance, s.maintained)]
+    for plan, operation in plans:
+        if plan is None:
+            continue
+        names = [b.transition for b in plan.blocks]
+        failed = _failure(view, operation)
+        for k in sorted(plan.asked - plan.taken):
+            name = plan.blocks[k].transition
+            cards.append(
+                TaskCard(
+                    "instruction",
+                    f"maintenance-{name}",
+                    sentence(describe(view, name)),
+                    failed,
+                    detail=f"step {names.index(name) + 1} of {len(names)}",
+                    transition=name,
+                    step=names.index(name) + 1,
+                    of=len(names),
+                )
+            )
+    plan = s.recovery
+    if plan is not None:
+        for k in sorted(plan.approved - plan.taken):
+            name = plan.blocks[k].transition
+            if view.model.station.model.transition(name).kind is TransitionKind.MAINTENANCE:
+                cards.append(
+                    TaskCard(
+                        "instruction",
+                        f"recovery-{name}",
+                        sentence(describe(view, name)),
+                        "Approved step of the recovery from a forbidden state",
+                        transition=name,
+                        step=k,
+                    )
+                )
+    return cards
+
+
+def _approvals(view: StationView) -> list[TaskCard]:
+    plan = view.state.recovery
+    if plan is None:
+        return []
+    violated = ", ".join(sorted(view.state.relaxed)) or "a specification"
+    cards = []
+    for k in sorted(plan.asked - plan.approved):
+        name = plan.blocks[k].transition
+        kind = view.model.station.model.transition(name).kind
+        who = "You will" if kind is TransitionKind.MAINTENANCE else "The station will"
+        cards.append(
+            TaskCard(
+                "approval",
+                f"approval-{k}",
+                sentence(describe(view, name)),
+                f"The station is in a forbidden state ({violated}). {who} do this step "
+                "to get out of it, once you approve.",
+                detail=f"recovery step {k + 1} of {len(plan.blocks)}: {name}",
+                transition=name,
+                step=k,
+            )
+        )
+    return cards
+
+
+def describe(view: StationView, name: str) -> str:
+    t = view.model.station.model.transition(name)
+    return t.description or name
+
+
+def _failure(view: StationView, operation: str) -> str:
+    """What failed, in plain words: the operation in error and the reason it went there."""
+    if not operation:
+        return "An error needs your hands"
+    description = view.model.station.operation(operation).description or operation
+    reason = last_reason(view.events, operation)
+    text = f"Failed: {sentence(description)[:1].lower()}{sentence(description)[1:]}"
+    return f"{text} ({reason})" if reason else text
+
+
+def last_reason(events: Iterable[Event], subject: str) -> str:
+    reason = ""
+    for event in events:
+        kind, after = event.kind, event.detail.get("after")
+        if kind == "operation" and event.subject == subject and after == "error":
+            reason = str(event.detail.get("why", ""))
+    return reason

@@ -1,0 +1,1 @@
+"""The web edge: routers per area (operator, engineer, audit, api), templates, SSE."""

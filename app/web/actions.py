@@ -1,0 +1,83 @@
+"""Carrying out people's actions on the live station, shared by the pages and the API.
+
+Names are checked here first, so that a typo gets a 404 or 422 that says what exists; the
+runner then decides whether the action is allowed now (a refusal becomes a 409 with the
+runner's reason).
+"""
+
+from __future__ import annotations
+
+import asyncio
+from concurrent.futures import Future
+from typing import TypeVar
+
+from fastapi import HTTPException
+
+from app.live_station import LiveStation, StationError
+from planner.loading import closest
+from planner.model import VariableKind
+from planner.runner_io import Action, Event
+
+T = TypeVar("T")
+ANSWER_SECONDS = 30.0
+
+
+async def answer(future: Future[T]) -> T:
+    """Wait for the station loop to carry out a request (it answers after committing)."""
+    try:
+        return await asyncio.wait_for(asyncio.wrap_future(future), ANSWER_SECONDS)
+    except TimeoutError:
+        raise HTTPException(503, "the station did not answer in time; try again") from None
+
+
+def refused(events: list[Event]) -> str:
+    """The runner's reason, if it refused the action ("" if it took it)."""
+    for event in events:
+        if event.kind == "refused":
+            return f"{event.subject}: {event.detail.get('why', 'refused')}"
+    return ""
+
+
+async def perform(live: LiveStation, action: Action) -> list[Event]:
+    """Hand `action` to the runner; its events, or StationError (409) with the reason."""
+    events = await answer(live.act(action))
+    why = refused(events)
+    if why:
+        raise StationError(why)
+    return events
+
+
+def known(name: str, names: list[str], what: str) -> str:
+    """`name` if it is one of `names`, else a 404 that suggests the closest."""
+    if name in names:
+        return name
+    guess = closest(name, names)
+    hint = f"; did you mean '{guess}'?" if guess else ""
+    raise HTTPException(404, f"there is no {what} '{name}'{hint}")
+
+
+def intention_name(live: LiveStation, name: str) -> str:
+    return known(name, [i.name for i in live.model.station.intentions], "intention")
+
+
+def operation_name(live: LiveStation, name: str) -> str:
+    return known(name, [o.name for o in live.model.station.operations], "operation")
+
+
+def effect_name(live: LiveStation, name: str) -> str:
+    names = [e.name for e in live.runner.effects]
+    return known(name, names, "effect transition")
+
+
+def estimated_value(live: LiveStation, variable: str, text: str) -> tuple[str, bool | str]:
+    """The variable (estimated or decision) and `text` read as one of its values, or a 4xx."""
+    model = live.model.station.model
+    kinds = (VariableKind.ESTIMATED, VariableKind.DECISION)
+    names = [v.name for v in model.variables if v.kind in kinds]
+    known(variable, names, "estimated or decision variable")
+    domain = model.variable(variable).domain
+    for value in domain:
+        if str(value).lower() == text.strip().lower():
+            return variable, value
+    shown = ", ".join(str(v).lower() if isinstance(v, bool) else str(v) for v in domain)
+    raise HTTPException(422, f"'{text}' is not a value of {variable}; use one of {shown}")

@@ -1,0 +1,128 @@
+"""The FastAPI application: middleware, error pages, routers per area (STYLE.md)."""
+
+from __future__ import annotations
+
+import logging
+
+from fastapi import FastAPI, HTTPException, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import HTMLResponse, JSONResponse, RedirectResponse, Response
+from fastapi.staticfiles import StaticFiles
+from starlette.middleware.sessions import SessionMiddleware
+
+from app.live_station import StationError
+from app.web import auth_routes, events, operator
+from app.web.deps import LoginRequired, PasswordChangeRequired, is_api, page_context
+from app.web.server import STATIC, Server
+
+log = logging.getLogger(__name__)
+
+
+def create_app(srv: Server, secret: str) -> FastAPI:
+    app = FastAPI(
+        title="Sequence Planner station",
+        description="Operator, engineer and auditor HMI of one assembly station, and its JSON API.",
+        version="0.1.0",
+    )
+    app.state.server = srv
+    app.add_middleware(
+        SessionMiddleware,
+        secret_key=secret,
+        session_cookie="sp_session",
+        max_age=12 * 3600,
+        same_site="strict",
+        https_only=srv.secure_cookies,
+    )
+    app.mount("/static", StaticFiles(directory=str(STATIC)), name="static")
+    for router in (auth_routes.router, events.router, operator.router):
+        app.include_router(router)
+    _optional_routers(app)
+
+    @app.get("/healthz", include_in_schema=False)
+    def healthz() -> dict[str, object]:
+        view = srv.live.view
+        return {"ok": True, "version": view.version, "model": view.model.number}
+
+    app.add_exception_handler(LoginRequired, _login_required)
+    app.add_exception_handler(PasswordChangeRequired, _password_change)
+    app.add_exception_handler(HTTPException, _http_error)  # type: ignore[arg-type]
+    app.add_exception_handler(RequestValidationError, _invalid)  # type: ignore[arg-type]
+    app.add_exception_handler(StationError, _station_error)  # type: ignore[arg-type]
+    return app
+
+
+def _optional_routers(app: FastAPI) -> None:
+    """Areas built in their own modules (engineer, audit, API), included when present."""
+    import importlib
+
+    for name in ("engineer", "audit", "api"):
+        try:
+            module = importlib.import_module(f"app.web.{name}")
+        except ModuleNotFoundError as exc:
+            if exc.name != f"app.web.{name}":
+                raise
+            continue
+        app.include_router(module.router)
+
+
+async def _login_required(request: Request, _exc: Exception) -> Response:
+    if request.headers.get("hx-request"):
+        return Response(status_code=401, headers={"HX-Redirect": "/login"})
+    return RedirectResponse(f"/login?next={request.url.path}", status_code=303)
+
+
+async def _password_change(request: Request, _exc: Exception) -> Response:
+    if is_api(request):
+        return JSONResponse({"detail": "change the first-login password at /password"}, 403)
+    return RedirectResponse("/password", status_code=303)
+
+
+def error_response(request: Request, status: int, message: str) -> Response:
+    if is_api(request) or request.headers.get("hx-request"):
+        if request.headers.get("hx-request") and not is_api(request):
+            return HTMLResponse(
+                f'<p class="flash error" role="alert">{_escape(message)}</p>',
+                status_code=status,
+                headers={"HX-Retarget": "#flash", "HX-Reswap": "innerHTML"},
+            )
+        return JSONResponse({"detail": message}, status_code=status)
+    srv = request.app.state.server
+    context = page_context(request, None, "error", error=message, status=status)
+    try:
+        from app.web.deps import current_caller
+
+        context["user"] = current_caller(request)
+    except Exception:  # a broken session must not hide the error itself
+        context["user"] = None
+    response: Response = srv.templates.TemplateResponse(
+        request, "error.html", context, status_code=status
+    )
+    return response
+
+
+def _escape(text: str) -> str:
+    from html import escape
+
+    return escape(text)
+
+
+async def _http_error(request: Request, exc: HTTPException) -> Response:
+    return error_response(request, exc.status_code, str(exc.detail))
+
+
+async def _invalid(request: Request, exc: RequestValidationError) -> Response:
+    problems = []
+    for error in exc.errors():
+        where = ".".join(str(p) for p in error.get("loc", ()) if p not in ("body", "query"))
+        problems.append(f"{where}: {error.get('msg', 'invalid')}" if where else error["msg"])
+    message = "; ".join(problems) or "the request is not valid"
+    if is_api(request):
+        errors = [
+            {"loc": list(e.get("loc", ())), "msg": str(e.get("msg", ""))} for e in exc.errors()
+        ]
+        return JSONResponse({"detail": message, "errors": errors}, status_code=422)
+    return error_response(request, 422, message)
+
+
+async def _station_error(request: Request, exc: StationError) -> Response:
+    return error_response(request, 409, str(exc))

@@ -1,0 +1,288 @@
+"""A runner's live state as JSON and back (DESIGN.md section 4).
+
+The station server saves `dump(state)` after every tick and, after a `kill -9`, carries on
+from `load(runner, saved, now)`.  Expressions are stored as text and parsed against the
+runner's model, so a snapshot is checked against the model it is restored into: a name or a
+value the model does not know raises `SnapshotError` saying which.
+
+Not stored: `watched`, `settled` and `consistent`, caches of what the incremental checks last
+looked at; `None` makes the first tick after a restart look at everything.  Rebased: times of
+the old process's clock mean nothing to the new one, so heartbeat windows, effect time-out
+windows and the background check start again at `now` (a device that was unavailable stays
+so until it answers; a timed-out effect stays timed out).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Collection, Iterable, Mapping
+from dataclasses import fields
+from typing import Any, TypeVar
+
+from planner.expressions import Expr, ExpressionError, format_expr, parse_expr
+from planner.loading import scope_for
+from planner.partial_order import Block
+from planner.runner import OperationPlan, Runner, RunnerState, TransitionPlan
+
+FORMAT = 1
+
+T = TypeVar("T")
+
+
+class SnapshotError(Exception):
+    """A snapshot that cannot be restored into this runner; the message names what and where."""
+
+
+def dump(state: RunnerState) -> dict[str, Any]:
+    """The state as plain JSON values: sets as sorted lists, expressions as text."""
+    return {
+        "format": FORMAT,
+        "values": dict(state.values),
+        "intentions": dict(state.intentions),
+        "operations": dict(state.operations),
+        # pairs, not a mapping (a database may reorder a JSON object's keys): the transition
+        # planner's goal conjoins the executing operations' goals in the order they started
+        "goals": [[name, format_expr(goal)] for name, goal in state.goals.items()],
+        "failures": dict(state.failures),
+        "operation_plan": _dump_operations(state.operation_plan),
+        "transition_plan": _dump_plan(state.transition_plan),
+        "recovery": _dump_plan(state.recovery),
+        "relaxed": sorted(state.relaxed),
+        "rejected": sorted(state.rejected),
+        "maintenance": _dump_plan(state.maintenance),
+        "maintained": state.maintained,
+        "heard": dict(state.heard),
+        "unavailable": sorted(state.unavailable),
+        "effect_since": dict(state.effect_since),
+        "timed_out": sorted(state.timed_out),
+        "restart": state.restart,
+        "resets": sorted(state.resets),
+        "armed": sorted(state.armed),
+        "next_recheck": state.next_recheck,
+        "replan_operations": state.replan_operations,
+        "replan_transitions": state.replan_transitions,
+        "halted": state.halted,
+    }
+
+
+def _dump_plan(plan: TransitionPlan | None) -> dict[str, Any] | None:
+    if plan is None:
+        return None
+    return {
+        "goal": format_expr(plan.goal),
+        "steps": list(plan.steps),
+        "blocks": [
+            {"index": b.index, "steps": list(b.steps), "after": sorted(b.after)}
+            | {"reads": sorted(b.reads), "writes": sorted(b.writes)}
+            for b in plan.blocks
+        ],
+        "taken": sorted(plan.taken),
+        "remaining": {str(k): list(v) for k, v in sorted(plan.remaining.items())},
+        "approved": sorted(plan.approved),
+        "asked": sorted(plan.asked),
+    }
+
+
+def _dump_operations(plan: OperationPlan | None) -> dict[str, Any] | None:
+    if plan is None:
+        return None
+    return {
+        "steps": list(plan.steps),
+        "after": [sorted(a) for a in plan.after],
+        "started": sorted(plan.started),
+        "finished": sorted(plan.finished),
+    }
+
+
+def load(
+    runner: Runner, data: Mapping[str, Any], now: float, *, strict: bool = True
+) -> RunnerState:
+    """The state `dump` saved, for `runner`'s model, on the clock of the process that loads it.
+
+    What the model has and the snapshot lacks starts as `Runner.initial` would (a variable at
+    its initial value, an intention or operation in `i`): a newer model version may add them.
+    Names the model lacks raise, or with `strict=False` are dropped; but plans are never
+    patched, so a plan step the model does not know always raises.
+    """
+    if not isinstance(data, Mapping):
+        raise SnapshotError(f"a snapshot is a mapping, not {type(data).__name__}")
+    if data.get("format") != FORMAT:
+        raise SnapshotError(f"snapshot format {data.get('format')!r}; this version reads {FORMAT}")
+    loader = _Loader(runner, strict)
+    keys = dump(runner.initial())  # every key dump writes
+    return loader.state(loader.record(dict(data), keys, "the snapshot"), now)
+
+
+class _Loader:
+    def __init__(self, runner: Runner, strict: bool) -> None:
+        self.runner, self.model, self.strict = runner, runner.model, strict
+        self.scope = scope_for(self.model.domains)
+        self.resources = [r.name for r in runner.station.resources]
+        self.known: dict[str, Collection[str]] = {
+            "variable": self.model.variable_index,
+            "transition": self.model.transition_index,
+            "specification": {s.name for s in self.model.specifications},
+            "resource": self.resources,
+            "operation": runner.operations,
+            "intention": runner.intentions,
+        }
+
+    def state(self, data: Mapping[str, Any], now: float) -> RunnerState:
+        model = self.model
+        values = self.mapping(data["values"], "variable", "values")
+        for name, value in values.items():
+            variable = model.variable(name)
+            if not any(type(value) is type(v) and value == v for v in variable.domain):
+                shown = variable.describe_domain()
+                raise SnapshotError(f"values: {value!r} is not a value of '{name}' ({shown})")
+        pairs = self.check(data["goals"], list, "goals")
+        if not all(isinstance(p, list) and len(p) == 2 and isinstance(p[0], str) for p in pairs):
+            raise SnapshotError("goals: expected a list of [operation, goal] pairs")
+        goals = self.mapping(dict(pairs), "operation", "goals")
+        failures = self.mapping(data["failures"], "operation", "failures")
+        for name, count in failures.items():
+            self.check(count, int, f"failures['{name}']")
+        strings = {
+            key: self.check(data[key], str, key)
+            for key in ("maintained", "replan_operations", "replan_transitions", "halted")
+        }
+        if strings["maintained"]:
+            self.keep(strings["maintained"], "operation", "maintained", droppable=False)
+        self.mapping(data["heard"], "resource", "heard")  # its times are the old clock's
+        return RunnerState(
+            values={v.name: values.get(v.name, v.initial) for v in model.variables},
+            intentions=self.states(data["intentions"], "intention", ("i", "e", "f", "error")),
+            operations=self.states(data["operations"], "operation", ("i", "e", "error")),
+            goals={name: self.expr(text, f"goals['{name}']") for name, text in goals.items()},
+            failures=failures,
+            operation_plan=self.operation_plan(data["operation_plan"]),
+            transition_plan=self.plan(data["transition_plan"], "transition_plan"),
+            recovery=self.plan(data["recovery"], "recovery"),
+            relaxed=frozenset(self.names(data["relaxed"], "specification", "relaxed")),
+            rejected=self.names(data["rejected"], "transition", "rejected"),
+            maintenance=self.plan(data["maintenance"], "maintenance"),
+            maintained=strings["maintained"],
+            # fresh heartbeat and effect time-out windows on the new clock
+            heard=dict.fromkeys(self.resources, now),
+            unavailable=self.names(data["unavailable"], "resource", "unavailable"),
+            effect_since=dict.fromkeys(
+                self.mapping(data["effect_since"], "transition", "effect_since"), now
+            ),
+            timed_out=self.names(data["timed_out"], "transition", "timed_out"),
+            restart=self.check(data["restart"], bool, "restart"),
+            resets=self.names(data["resets"], "operation", "resets"),
+            armed=self.names(data["armed"], "intention", "armed"),
+            next_recheck=now,
+            replan_operations=strings["replan_operations"],
+            replan_transitions=strings["replan_transitions"],
+            halted=strings["halted"],
+        )
+
+    def record(self, raw: Any, keys: Iterable[str], where: str) -> dict[str, Any]:
+        """`raw` as a mapping with (at least) these keys."""
+        record = self.check(raw, dict, where)
+        missing = [key for key in keys if key not in record]
+        if missing:
+            raise SnapshotError(f"{where}: {', '.join(missing)} missing")
+        return record
+
+    @staticmethod
+    def check(value: Any, kind: type[T], where: str) -> T:
+        if not isinstance(value, kind) or (kind is int and isinstance(value, bool)):
+            raise SnapshotError(f"{where}: expected {kind.__name__}, found {value!r}")
+        return value
+
+    def keep(self, name: Any, what: str, where: str, *, droppable: bool = True) -> bool:
+        """Is `name` in the model?  If not: an error, or (not strict) False to drop it."""
+        if isinstance(name, str) and name in self.known[what]:
+            return True
+        if self.strict or not droppable or not isinstance(name, str):
+            raise SnapshotError(f"{where}: unknown {what} {name!r}")
+        return False
+
+    def mapping(self, raw: Any, what: str, where: str) -> dict[str, Any]:
+        return {k: v for k, v in self.check(raw, dict, where).items() if self.keep(k, what, where)}
+
+    def names(self, raw: Any, what: str, where: str) -> set[str]:
+        return {name for name in self.check(raw, list, where) if self.keep(name, what, where)}
+
+    def steps(self, raw: Any, what: str, where: str) -> tuple[str, ...]:
+        """Names in a plan, in order; unknown ones always raise."""
+        steps = self.check(raw, list, where)
+        return tuple(n for n in steps if self.keep(n, what, where, droppable=False))
+
+    def states(self, raw: Any, what: str, allowed: tuple[str, ...]) -> dict[str, str]:
+        where = what + "s"
+        states = self.mapping(raw, what, where)
+        for name, state in states.items():
+            if state not in allowed:
+                shown = ", ".join(allowed)
+                raise SnapshotError(f"{where}['{name}']: state {state!r} is not one of {shown}")
+        return {name: states.get(name, "i") for name in self.known[what]}  # the model's order
+
+    def expr(self, text: Any, where: str) -> Expr:
+        try:
+            return parse_expr(self.check(text, str, where), self.scope)
+        except ExpressionError as exc:
+            raise SnapshotError(f"{where}: {exc.message} in {text!r}") from None
+
+    def indexes(self, raw: Any, bound: int, where: str) -> set[int]:
+        """Positions in a plan (of blocks or steps), each below `bound`."""
+        out = {self.check(k, int, where) for k in self.check(raw, list, where)}
+        if any(not 0 <= k < bound for k in out):
+            raise SnapshotError(f"{where}: {sorted(out)} reaches past the {bound} in the plan")
+        return out
+
+    def plan(self, raw: Any, where: str) -> TransitionPlan | None:
+        if raw is None:
+            return None
+        raw = self.record(raw, _names(TransitionPlan), where)
+        blocks = []
+        for k, block in enumerate(self.check(raw["blocks"], list, f"{where}.blocks")):
+            at = f"{where}.blocks[{k}]"
+            block = self.record(block, _names(Block), at)
+            steps = self.steps(block["steps"], "transition", f"{at}.steps")
+            if not steps:
+                raise SnapshotError(f"{at}.steps: a block has at least one step")
+            reads = self.steps(block["reads"], "variable", f"{at}.reads")
+            writes = self.steps(block["writes"], "variable", f"{at}.writes")
+            after = self.indexes(block["after"], k, f"{at}.after")  # earlier blocks only
+            index = self.check(block["index"], int, f"{at}.index")
+            blocks.append(
+                Block(index, steps, frozenset(reads), frozenset(writes), frozenset(after))
+            )
+        remaining: dict[int, list[str]] = {}
+        for key, waiting in self.check(raw["remaining"], dict, f"{where}.remaining").items():
+            if not str(key).isdigit() or int(key) >= len(blocks):
+                raise SnapshotError(f"{where}.remaining: {key!r} is not a block number")
+            at = f"{where}.remaining[{key}]"
+            remaining[int(key)] = list(self.steps(waiting, "transition", at))
+        return TransitionPlan(
+            self.expr(raw["goal"], f"{where}.goal"),
+            self.steps(raw["steps"], "transition", f"{where}.steps"),
+            tuple(blocks),
+            self.indexes(raw["taken"], len(blocks), f"{where}.taken"),
+            remaining,
+            self.indexes(raw["approved"], len(blocks), f"{where}.approved"),
+            self.indexes(raw["asked"], len(blocks), f"{where}.asked"),
+        )
+
+    def operation_plan(self, raw: Any) -> OperationPlan | None:
+        if raw is None:
+            return None
+        raw = self.record(raw, _names(OperationPlan), "operation_plan")
+        steps = self.steps(raw["steps"], "operation", "operation_plan.steps")
+        after = self.check(raw["after"], list, "operation_plan.after")
+        if len(after) != len(steps):
+            raise SnapshotError("operation_plan.after: needs one entry per step")
+        at = "operation_plan.after"  # each step waits for earlier ones only
+        waits = [frozenset(self.indexes(a, k, f"{at}[{k}]")) for k, a in enumerate(after)]
+        return OperationPlan(
+            steps,
+            tuple(waits),
+            self.indexes(raw["started"], len(steps), "operation_plan.started"),
+            self.indexes(raw["finished"], len(steps), "operation_plan.finished"),
+        )
+
+
+def _names(plan: type[Any]) -> list[str]:
+    return [f.name for f in fields(plan)]

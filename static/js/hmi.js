@@ -1,0 +1,125 @@
+// Sequence Planner HMI: small glue for every page (loaded by templates/base.html after htmx).
+// - every htmx request carries the CSRF token from <meta name="csrf-token">;
+// - the top bar's connection indicator follows the SSE connection (#conn);
+// - an SSE "alarm" event whose data is a count (or JSON {count, priority}) updates #alarm-count;
+// - data-confirm="question?" on a form, submit button, link or htmx element asks confirm() first
+//   (htmx's own hx-confirm works as usual);
+// - forms with data-once send once (no double "Done").
+(() => {
+  "use strict";
+
+  const csrfToken = () => document.querySelector('meta[name="csrf-token"]')?.content || "";
+
+  document.addEventListener("htmx:configRequest", (event) => {
+    const token = csrfToken();
+    if (token) event.detail.headers["X-CSRF-Token"] = token;
+  });
+
+  // ---- connection indicator ----
+  const CONN_TEXT = { wait: "connecting", live: "live", down: "disconnected" };
+  function setConnection(state) {
+    const el = document.getElementById("conn");
+    if (!el || el.dataset.state === state) return;
+    el.dataset.state = state;
+    el.querySelector(".conn__text").textContent = CONN_TEXT[state];
+  }
+
+  function setAlarmCount(count, priority) {
+    const el = document.getElementById("alarm-count");
+    if (!el) return;
+    el.querySelector(".alarm-count__n").textContent = String(count);
+    el.classList.toggle("alarm-count--active", count > 0);
+    if (count > 0 && priority) el.dataset.priority = String(priority).toLowerCase();
+    else delete el.dataset.priority;
+    el.setAttribute("aria-label", `${count} active alarm${count === 1 ? "" : "s"}`);
+  }
+
+  function onAlarmEvent(event) {
+    let data;
+    try {
+      data = JSON.parse(event.data);
+    } catch {
+      return; // not a count: pages refresh themselves with hx-trigger="sse:alarm"
+    }
+    if (Number.isInteger(data)) setAlarmCount(data);
+    else if (data && Number.isInteger(data.count)) setAlarmCount(data.count, data.priority);
+  }
+
+  const watched = new WeakSet();
+  document.addEventListener("htmx:sseOpen", (event) => {
+    setConnection("live");
+    const source = event.detail?.source;
+    if (source && !watched.has(source)) {
+      watched.add(source);
+      source.addEventListener("alarm", onAlarmEvent);
+    }
+  });
+  document.addEventListener("htmx:sseError", () => setConnection("down"));
+  window.addEventListener("offline", () => setConnection("down"));
+
+  // ---- data-confirm ----
+  function confirmed(el) {
+    const question = el?.dataset?.confirm;
+    return !question || window.confirm(question);
+  }
+
+  document.addEventListener(
+    "submit",
+    (event) => {
+      const form = event.target;
+      if (!confirmed(event.submitter) || !confirmed(form)) {
+        event.preventDefault();
+        event.stopImmediatePropagation();
+        return;
+      }
+      if (form.hasAttribute("data-once")) {
+        if (form.dataset.sent) {
+          event.preventDefault();
+          event.stopImmediatePropagation();
+          return;
+        }
+        form.dataset.sent = "1";
+        // after the submission has read the form, so the button's name/value still go out
+        setTimeout(() => form.querySelectorAll("button").forEach((b) => (b.disabled = true)), 0);
+      }
+    },
+    true,
+  );
+
+  document.addEventListener(
+    "click",
+    (event) => {
+      const el = event.target.closest?.("[data-confirm]");
+      if (!el || el.tagName === "FORM") return;
+      if (el.form && el.type === "submit") return; // asked on submit
+      if (!confirmed(el)) {
+        event.preventDefault();
+        event.stopImmediatePropagation();
+      }
+    },
+    true,
+  );
+
+  // back/forward cache: a page shown again must be usable again
+  window.addEventListener("pageshow", (event) => {
+    if (!event.persisted) return;
+    document.querySelectorAll("form[data-once]").forEach((form) => {
+      delete form.dataset.sent;
+      form.querySelectorAll("button").forEach((b) => (b.disabled = false));
+    });
+  });
+
+  // ---- the user menu closes on Escape or a tap elsewhere ----
+  document.addEventListener("click", (event) => {
+    document.querySelectorAll("details.user-menu[open]").forEach((menu) => {
+      if (!menu.contains(event.target)) menu.open = false;
+    });
+  });
+  document.addEventListener("keydown", (event) => {
+    if (event.key !== "Escape") return;
+    document.querySelectorAll("details.user-menu[open]").forEach((menu) => {
+      menu.open = false;
+      menu.querySelector("summary").focus();
+    });
+  });
+})();

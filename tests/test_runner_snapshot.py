@@ -1,0 +1,245 @@
+"""Runner snapshots: a state saved as JSON restores to the same state, and a restored runner
+carries on exactly as the one that was killed would have."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from dataclasses import dataclass, fields, replace
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+import app.scenario
+from app import supervisor_cache
+from app.scenario import Planners, Scenario, load_scenario, play
+from planner.operation_planner import OperationPlanner
+from planner.partial_order import Block
+from planner.runner import OperationPlan, Runner, RunnerState, TransitionPlan
+from planner.runner_io import Event, Inputs
+from planner.runner_snapshot import FORMAT, SnapshotError, dump, load
+from planner.station import Station, load_station
+
+ROOT = Path(__file__).resolve().parent.parent
+MODEL = ROOT / "models" / "demo_station.yaml"
+SCENARIOS = sorted((ROOT / "models" / "scenarios").glob("*.yaml"))
+E6 = "e6_r2_disconnects_above_engine"
+CACHES = {"watched", "settled", "consistent"}  # not stored: None after loading
+REBASED = {"heard", "effect_since", "next_recheck"}  # stored, but `now` after loading
+
+
+@dataclass
+class Tick:
+    inputs: Inputs
+    now: float
+    commands: dict[str, Any]
+    events: list[Event]
+
+
+@dataclass
+class Run:
+    scenario: Scenario
+    runner: Runner
+    states: list[RunnerState]  # after each tick, as `play`'s watch saw them
+    ticks: list[Tick]
+
+
+@pytest.fixture(scope="module")
+def demo() -> tuple[Station, Planners]:
+    text = MODEL.read_text()
+    station = load_station(text, str(MODEL))
+    directory = supervisor_cache.default_directory()
+    transition = supervisor_cache.planner(station.model, text, "bdd", directory)
+    return station, Planners(transition, OperationPlanner(station))
+
+
+@pytest.fixture(scope="module")
+def runs(demo: tuple[Station, Planners]) -> dict[str, Run]:
+    """Every scenario played once, with what each tick was given and gave back."""
+    station, planners = demo
+    made: list[Runner] = []
+    ticks: list[Tick] = []
+
+    class Recording(Runner):
+        def __init__(self, *args: Any, **kwargs: Any) -> None:
+            super().__init__(*args, **kwargs)
+            made.append(self)
+
+        def tick(
+            self, state: RunnerState, inputs: Inputs, now: float
+        ) -> tuple[RunnerState, dict[str, Any], list[Event]]:
+            after, commands, events = super().tick(state, inputs, now)
+            ticks.append(Tick(inputs, now, commands, events))
+            return after, commands, events
+
+    out = {}
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(app.scenario, "Runner", Recording)
+        for path in SCENARIOS:
+            scenario = load_scenario(path.read_text(), str(path), station)
+            states: list[RunnerState] = []
+            made.clear()
+            ticks.clear()
+            events = list(play(station, scenario, planners, watch=states.append))
+            assert events[-1].kind == "done", path.name
+            out[path.stem] = Run(scenario, made[0], states, list(ticks))
+    return out
+
+
+def restored(runner: Runner, state: RunnerState, now: float) -> RunnerState:
+    """Through JSON text, as the database keeps it."""
+    return load(runner, json.loads(json.dumps(dump(state))), now)
+
+
+def sampled(states: list[RunnerState]) -> list[RunnerState]:
+    """Every 10th state, and every one in the middle of something rare."""
+    return [
+        s
+        for k, s in enumerate(states)
+        if k % 10 == 0 or s.recovery or s.maintenance or s.resets or s.timed_out or s.unavailable
+    ]
+
+
+def assert_round_trip(runner: Runner, state: RunnerState) -> None:
+    now = state.next_recheck
+    back = restored(runner, state, now)
+    assert (back.watched, back.settled, back.consistent) == (None, None, None)
+    assert back.heard == dict.fromkeys(state.heard, now)
+    assert back.effect_since == dict.fromkeys(state.effect_since, now)
+    assert back.next_recheck == now
+    rest = replace(back, heard=state.heard, effect_since=state.effect_since)
+    assert (
+        replace(rest, watched=state.watched, settled=state.settled, consistent=state.consistent)
+        == state
+    )
+    # where the runner iterates in order, the order survives too
+    for name in ("values", "intentions", "operations", "goals"):
+        assert list(getattr(back, name)) == list(getattr(state, name)), name
+
+
+@pytest.mark.parametrize("name", [p.stem for p in SCENARIOS])
+def test_a_state_saved_after_a_tick_loads_back_the_same(runs: dict[str, Run], name: str) -> None:
+    run = runs[name]
+    for state in sampled(run.states):
+        assert_round_trip(run.runner, state)
+
+
+def test_the_scenarios_exercise_every_stored_field(runs: dict[str, Run]) -> None:
+    """The round trips above are only as good as what the states held."""
+    names = {f.name for f in fields(RunnerState)} - CACHES
+    used = {n for run in runs.values() for s in sampled(run.states) for n in names if getattr(s, n)}
+    assert names - used == {"rejected", "halted"}  # no scenario rejects a step or cycles
+
+
+def test_rejected_steps_and_a_halt_round_trip(runs: dict[str, Run]) -> None:
+    run = runs["e2_oil_filter_early"]
+    state = next(s for s in run.states if s.recovery is not None)
+    assert state.recovery is not None
+    rejected = {state.recovery.blocks[0].transition}
+    assert_round_trip(run.runner, replace(state, rejected=rejected, halted="automatic cycle"))
+
+
+def test_every_field_is_stored_or_declared_a_cache(runs: dict[str, Run]) -> None:
+    """Fails when a field is added to the runner's state (or its plans) and not to snapshots."""
+    state = next(s for s in runs[E6].states if s.operation_plan is not None and s.transition_plan)
+    saved = dump(state)
+    assert set(saved) - {"format"} == {f.name for f in fields(RunnerState)} - CACHES
+    assert set(saved["transition_plan"]) == {f.name for f in fields(TransitionPlan)}
+    assert set(saved["transition_plan"]["blocks"][0]) == {f.name for f in fields(Block)}
+    assert set(saved["operation_plan"]) == {f.name for f in fields(OperationPlan)}
+
+
+def test_a_restored_runner_carries_on_exactly_like_the_original(
+    demo: tuple[Station, Planners], runs: dict[str, Run]
+) -> None:
+    """Killed in E6 while the operator is asked to move the dead r2 home; a fresh runner,
+    given the same inputs from then on, must do exactly what the original did.
+
+    Rebasing changes nothing here, so the streams can be compared event for event: r2 is
+    already unavailable (its `heard` no longer matters until it answers) and every connected
+    resource answers every tick; the background check runs on the same ticks because the
+    new clock starts at the saved `next_recheck`; no effect is close to timing out.
+    """
+    station, planners = demo
+    run = runs[E6]
+    k = next(
+        k for k, s in enumerate(run.states) if s.maintenance is not None and "r2" in s.unavailable
+    )
+    saved = run.states[k]
+    assert any(e.kind == "instruction" for t in run.ticks[: k + 1] for e in t.events)
+    fresh = Runner(station, planners.transition, planners.operation, run.scenario.config)
+    state = restored(fresh, saved, saved.next_recheck)
+    later = run.ticks[k + 1 :]
+    assert len(later) >= 200
+    for tick in later:
+        state, commands, events = fresh.tick(state, tick.inputs, tick.now)
+        assert [(e.kind, e.subject, e.detail) for e in events] == [
+            (e.kind, e.subject, e.detail) for e in tick.events
+        ], tick.now
+        assert commands == tick.commands
+    final, original = dump(state), dump(run.states[-1])
+    # the one difference: r2 never answered again, so its heartbeat stayed rebased
+    assert final.pop("heard") == original.pop("heard") | {"r2": saved.next_recheck}
+    assert final == original
+
+
+def _set(path: str, value: Any) -> Callable[[dict[str, Any]], None]:
+    """Set the entry at a path of keys separated by `/` (list positions as numbers)."""
+
+    def change(data: dict[str, Any]) -> None:
+        *parents, last = [int(p) if p.isdigit() else p for p in path.split("/")]
+        for key in parents:
+            data = data[key]
+        data[last] = value
+
+    return change
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        (_set("format", FORMAT + 1), f"snapshot format {FORMAT + 1}"),
+        (_set("values/r9.pos", "home"), "values: unknown variable 'r9.pos'"),
+        (_set("values", {"r1.pos": "moon"}), "'moon' is not a value of 'r1.pos'"),
+        (_set("values", {"r1_tc.lock": 1}), "1 is not a value of 'r1_tc.lock' (bool)"),
+        (_set("transition_plan/blocks/0/steps/0", "r1.fly"), "unknown transition 'r1.fly'"),
+        (_set("transition_plan/steps/0", "r1.fly"), "transition_plan.steps: unknown transition"),
+        (_set("intentions/tighten_bolts", "done"), "intentions['tighten_bolts']: state 'done'"),
+        (_set("operations/place_bp4", "f"), "operations['place_bp4']: state 'f' is not one of"),
+        (_set("intentions/build_car", "i"), "intentions: unknown intention 'build_car'"),
+        (_set("goals", [["place_bp4", "r1.poss == home"]]), "goals['place_bp4']: unknown"),
+        (_set("transition_plan/taken", [99]), "transition_plan.taken: [99]"),
+        (_set("restart", "yes"), "restart: expected bool, found 'yes'"),
+        (lambda data: data.pop("armed"), "the snapshot: armed missing"),
+    ],
+)
+def test_an_unusable_snapshot_raises_naming_what_is_wrong(
+    runs: dict[str, Run], change: Callable[[dict[str, Any]], None], message: str
+) -> None:
+    run = runs[E6]
+    state = next(s for s in run.states if s.transition_plan is not None)
+    data = json.loads(json.dumps(dump(state)))
+    change(data)
+    with pytest.raises(SnapshotError) as caught:
+        load(run.runner, data, 0.0)
+    assert message in str(caught.value)
+
+
+def test_an_older_or_newer_model_loads_what_it_knows_unless_strict(runs: dict[str, Run]) -> None:
+    run = runs[E6]
+    state = run.states[-1]
+    data = json.loads(json.dumps(dump(state)))
+    data["values"]["r9.pos"] = "home"  # from a model that had an r9
+    data["intentions"]["build_car"] = "e"
+    data["armed"].append("build_car")
+    del data["values"]["r1.pos"]  # the model added a variable and an intention since
+    del data["intentions"]["tighten_bolts"]
+    with pytest.raises(SnapshotError, match=r"unknown variable 'r9\.pos'"):
+        load(run.runner, data, 5.0)
+    back = load(run.runner, data, 5.0, strict=False)
+    assert "r9.pos" not in back.values
+    assert "build_car" not in back.intentions and "build_car" not in back.armed
+    assert back.values["r1.pos"] == run.runner.model.variable("r1.pos").initial
+    assert back.intentions["tighten_bolts"] == "i"
+    assert back.operations == state.operations
