@@ -47,6 +47,7 @@ log = logging.getLogger(__name__)
 # the effect a person's "Done" on a task card performs (the watch reports the confirmed card)
 CONFIRM_EFFECT = "operator.confirm"
 RECENT_EVENTS = 200
+CLOCK_FIELDS = ("heard", "effect_since", "next_recheck")
 
 
 class StationError(Exception):
@@ -258,11 +259,16 @@ class LiveStation:
             entries.append(self._entry(event))
         changes = self.book.update(conditions(self.runner, self.state), self.wall())
         entries += [_alarm_entry(c) for c in changes]
-        snapshot = json.dumps(runner_snapshot.dump(self.state), sort_keys=True)
-        changed = bool(entries) or snapshot != self.last_snapshot
+        data = runner_snapshot.dump(self.state)
+        snapshot = json.dumps(data, sort_keys=True)
+        # heartbeat times change every round and are rebased on restore: not a change
+        for clock_field in CLOCK_FIELDS:
+            data.pop(clock_field, None)
+        compared = json.dumps(data, sort_keys=True)
+        changed = bool(entries) or compared != self.last_snapshot
         if changed:
             self._commit(entries, snapshot, now, alarms=bool(changes) or bool(answers))
-            self.last_snapshot = snapshot
+            self.last_snapshot = compared
             self.recent.extend(events)
             self.version += 1
             self.view = self._make_view(now)

@@ -62,7 +62,8 @@ def build(
     live = LiveStation(
         store, name, model, simulated=simulated, period=period, clock=_scaled_clock(speed)
     )
-    live.watch_area("tasks", task_cards)
+    # the task page shows the cards, and restart mode when there are none
+    live.watch_area("tasks", lambda view: (task_cards(view), view.state.restart))
     server = Server(
         store,
         live,

@@ -81,7 +81,7 @@ def error_response(request: Request, status: int, message: str) -> Response:
     if is_api(request) or request.headers.get("hx-request"):
         if request.headers.get("hx-request") and not is_api(request):
             return HTMLResponse(
-                f'<p class="flash error" role="alert">{_escape(message)}</p>',
+                f'<p class="flash flash--error" role="alert">{_escape(message)}</p>',
                 status_code=status,
                 headers={"HX-Retarget": "#flash", "HX-Reswap": "innerHTML"},
             )

@@ -98,3 +98,7 @@ async def activate(srv: Server, number: int, user: str) -> None:
         raise HTTPException(409, f"{why}; activate when it is idle or in restart mode")
     model = await run_in_threadpool(build_model, row, srv.cache)
     await answer(srv.live.activate(model, user))
+    if srv.experiments:
+        from app.serve import experiments
+
+        srv.experiments = experiments(model.station)

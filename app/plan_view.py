@@ -1,0 +1,442 @@
+"""What the engineer's station page shows: plans drawn as their partial order, and the
+station's resources, variables, intentions and operations as rows.
+
+Pure functions of the runner's plans and state (no I/O, no control logic).  A plan's start
+order (DESIGN.md 3.4) says, for each step, which earlier steps it waits for.  A step's *level*
+is the length of the longest chain of steps it waits for; steps of one level do not wait for
+each other, so they are drawn side by side: they may run in parallel.  Only the direct
+dependencies are drawn as arrows (the transitive reduction): "c after b after a" needs no
+arrow from a to c.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+
+from planner.expressions import Value, format_value
+from planner.model import Model, TransitionKind, VariableKind
+from planner.runner import OperationPlan, TransitionPlan
+from planner.runner_io import Event
+from planner.station import Station
+
+# the drawing's grid, in SVG user units (= CSS pixels: the SVG is drawn at its own size)
+NODE_WIDTH = 208
+NODE_HEIGHT = 44
+GAP_X = 20
+GAP_Y = 30
+PAD = 8
+LABEL_CHARS = 27  # what fits on a node's line at 13 px
+
+
+@dataclass(frozen=True)
+class PlanNode:
+    """One step (a transition block or an operation) placed in the drawing.
+
+    status: done, started, ready (waits only for its guard), waiting (for earlier steps),
+    error, asks (waits for an operator's approval or work), approved, rejected.
+    """
+
+    key: int  # the block's (or operation step's) position in the plan
+    name: str
+    label: str  # the name, shortened to fit
+    note: str  # second line: the status in words, and what follows the step
+    title: str  # everything, for the tooltip and the list
+    status: str
+    level: int
+    lane: int
+    after: tuple[int, ...]  # every earlier step it waits for
+    x: int
+    y: int
+
+
+@dataclass(frozen=True)
+class PlanEdge:
+    """An arrow from a step to one that waits for it directly."""
+
+    source: int
+    target: int
+    path: str  # SVG path data
+    done: bool  # the step it comes from is done
+
+
+@dataclass(frozen=True)
+class PlanDrawing:
+    kind: str  # operations, transitions, recovery, maintenance (also the SVG ids' prefix)
+    nodes: tuple[PlanNode, ...]
+    edges: tuple[PlanEdge, ...]
+    width: int
+    height: int
+    levels: int
+    widest: int  # the most steps on one level: how many may run at once
+
+    @property
+    def node_width(self) -> int:
+        return NODE_WIDTH
+
+    @property
+    def node_height(self) -> int:
+        return NODE_HEIGHT
+
+    @property
+    def summary(self) -> str:
+        steps = len(self.nodes)
+        done = sum(1 for n in self.nodes if n.status == "done")
+        text = f"{steps} step{'' if steps == 1 else 's'} in {self.levels} level"
+        text += "" if self.levels == 1 else "s"
+        if self.widest > 1:
+            text += f", up to {self.widest} in parallel"
+        return f"{text}; {done} done"
+
+
+def levels(after: Sequence[Iterable[int]]) -> list[int]:
+    """Each step's level: 0 without predecessors, else one more than its deepest one."""
+    out: list[int] = []
+    for k, earlier in enumerate(after):
+        out.append(1 + max((out[j] for j in earlier if j < k), default=-1))
+    return out
+
+
+def direct(after: Sequence[Iterable[int]]) -> list[frozenset[int]]:
+    """The transitive reduction: for each step, the predecessors not implied by another."""
+    ancestors: list[frozenset[int]] = []
+    reduced: list[frozenset[int]] = []
+    for k, earlier in enumerate(after):
+        mine = frozenset(j for j in earlier if j < k)
+        implied: set[int] = set()
+        for j in mine:
+            implied |= ancestors[j]
+        reduced.append(mine - implied)
+        ancestors.append(mine | implied)
+    return reduced
+
+
+def shorten(text: str, limit: int = LABEL_CHARS) -> str:
+    return text if len(text) <= limit else text[: limit - 1] + "…"
+
+
+@dataclass(frozen=True)
+class Step:
+    """A step to draw: its name, status, second line and tooltip."""
+
+    name: str
+    status: str
+    note: str
+    title: str
+
+
+def layout(kind: str, steps: Sequence[Step], after: Sequence[Iterable[int]]) -> PlanDrawing:
+    """Place the steps level by level (top to bottom), in plan order from the left.
+
+    Columns line up across levels, so that an arrow that skips levels can run down the gap
+    between two columns instead of behind the steps in between.
+    """
+    level = levels(after)
+    rows: dict[int, list[int]] = {}
+    for k, lv in enumerate(level):
+        rows.setdefault(lv, []).append(k)
+    widest = max((len(r) for r in rows.values()), default=0)
+    width = PAD * 2 + max(widest, 1) * (NODE_WIDTH + GAP_X)  # a last gap for arrows
+    height = PAD * 2 + max(len(rows), 1) * (NODE_HEIGHT + GAP_Y) - GAP_Y
+    place: dict[int, tuple[int, int, int]] = {}
+    for lv, row in rows.items():
+        for lane, k in enumerate(row):
+            x = PAD + lane * (NODE_WIDTH + GAP_X)
+            place[k] = (lane, x, PAD + lv * (NODE_HEIGHT + GAP_Y))
+    nodes = []
+    for k, step in enumerate(steps):
+        lane, x, y = place[k]
+        nodes.append(
+            PlanNode(
+                k,
+                step.name,
+                shorten(step.name),
+                shorten(step.note, LABEL_CHARS + 4),
+                step.title,
+                step.status,
+                level[k],
+                lane,
+                tuple(sorted(j for j in after[k] if j < k)),
+                x,
+                y,
+            )
+        )
+    edges = []
+    for k, earlier in enumerate(direct(after)):
+        for j in sorted(earlier):
+            edges.append(PlanEdge(j, k, _arrow(nodes[j], nodes[k]), nodes[j].status == "done"))
+    return PlanDrawing(kind, tuple(nodes), tuple(edges), width, height, len(rows), widest)
+
+
+def _arrow(a: PlanNode, b: PlanNode) -> str:
+    """From the bottom of `a` to the top of `b`; across more than one level, down the gap
+    right of the leftmost of the two columns."""
+    x1, y1 = a.x + NODE_WIDTH // 2, a.y + NODE_HEIGHT
+    x2, y2 = b.x + NODE_WIDTH // 2, b.y - 3  # room for the arrowhead
+    if b.level - a.level <= 1:
+        middle = (y1 + y2) // 2
+        return f"M{x1},{y1} C{x1},{middle} {x2},{middle} {x2},{y2}"
+    gap = PAD + (min(a.lane, b.lane) + 1) * (NODE_WIDTH + GAP_X) - GAP_X // 2
+    down, up = y1 + GAP_Y, y2 - GAP_Y + 3
+    bend1, bend2 = y1 + GAP_Y // 2, y2 - (GAP_Y - 3) // 2
+    return (
+        f"M{x1},{y1} C{x1},{bend1} {gap},{bend1} {gap},{down} L{gap},{up} "
+        f"C{gap},{bend2} {x2},{bend2} {x2},{y2}"
+    )
+
+
+# -- the runner's plans ------------------------------------------------------------------------
+
+STATUS_WORDS = {
+    "done": "done",
+    "started": "running",
+    "ready": "next",
+    "waiting": "waits for earlier steps",
+    "error": "error",
+    "asks": "waits for the operator",
+    "approved": "approved",
+    "rejected": "rejected",
+}
+
+
+def transition_plan(
+    kind: str,
+    plan: TransitionPlan,
+    model: Model,
+    rejected: Iterable[str] = (),
+) -> PlanDrawing:
+    """A transition plan (or the recovery or maintenance plan) as a drawing.
+
+    A block is done when its controlled step and the effects and automatics after it have
+    happened, started when its controlled step was taken and some of those are outstanding.
+    """
+    done = plan.done
+    refused = set(rejected)
+    steps = []
+    for k, block in enumerate(plan.blocks):
+        name = block.transition
+        transition = model.transition(name)
+        if k in done:
+            status = "done"
+        elif k in plan.taken:
+            status = "started"
+        elif name in refused:
+            status = "rejected"
+        elif k in plan.approved:
+            status = "approved"
+        elif k in plan.asked:
+            status = "asks"
+        elif block.after <= done:
+            status = "ready"
+        else:
+            status = "waiting"
+        following = block.steps[1:]
+        waiting_for = plan.remaining.get(k, [])
+        note = STATUS_WORDS[status]
+        if status == "started" and waiting_for:
+            note += f", waits for {waiting_for[0]}"
+        elif following and status != "done":
+            note += f" · then {len(following)} more"
+        if transition.kind is TransitionKind.MAINTENANCE:
+            note = "operator: " + note
+        title = [name]
+        if transition.description:
+            title.append(transition.description)
+        title.append(f"{transition.kind.value}; {STATUS_WORDS[status]}")
+        if following:
+            title.append("then: " + ", ".join(following))
+        if block.after:
+            title.append(
+                "after: " + ", ".join(plan.blocks[j].transition for j in sorted(block.after))
+            )
+        steps.append(Step(name, status, note, "\n".join(title)))
+    return layout(kind, steps, [b.after for b in plan.blocks])
+
+
+def operation_plan(plan: OperationPlan, station: Station, states: Mapping[str, str]) -> PlanDrawing:
+    """The operation plan as a drawing; an operation in error is marked wherever it stands."""
+    steps = []
+    for k, name in enumerate(plan.steps):
+        if k in plan.finished:
+            status = "done"
+        elif states.get(name) == "error":
+            status = "error"
+        elif k in plan.started:
+            status = "started"
+        elif plan.after[k] <= plan.finished:
+            status = "ready"
+        else:
+            status = "waiting"
+        description = station.operation(name).description
+        title = [name]
+        if description:
+            title.append(description)
+        title.append(STATUS_WORDS[status])
+        if plan.after[k]:
+            title.append("after: " + ", ".join(plan.steps[j] for j in sorted(plan.after[k])))
+        steps.append(Step(name, status, STATUS_WORDS[status], "\n".join(title)))
+    return layout("operations", steps, plan.after)
+
+
+# -- why something is in error -----------------------------------------------------------------
+
+
+def error_reason(events: Iterable[Event], kind: str, subject: str) -> str:
+    """Why `subject` (an operation or intention, by `kind`) last went to error ("" if the
+    recent events do not say)."""
+    reason = ""
+    for event in events:
+        if event.kind == kind and event.subject == subject and event.detail.get("after") == "error":
+            reason = str(event.detail.get("why", ""))
+    return reason
+
+
+def last_event(events: Sequence[Event], kind: str, subject: str = "") -> Event | None:
+    for event in reversed(events):
+        if event.kind == kind and (not subject or event.subject == subject):
+            return event
+    return None
+
+
+# -- the station overview ----------------------------------------------------------------------
+
+KIND_ORDER = (
+    VariableKind.MEASURED,
+    VariableKind.COMMAND,
+    VariableKind.ESTIMATED,
+    VariableKind.DECISION,
+)
+SETTABLE = (VariableKind.ESTIMATED, VariableKind.DECISION)
+
+
+@dataclass(frozen=True)
+class VariableRow:
+    name: str
+    value: str
+    kind: str
+    settable: bool  # estimated or decision: may be set in restart mode
+
+
+@dataclass(frozen=True)
+class VariableGroup:
+    """The variables of one resource (or of none: the product's), by kind."""
+
+    resource: str  # "" for the variables no resource owns
+    description: str
+    unavailable: bool
+    kinds: tuple[tuple[str, tuple[VariableRow, ...]], ...]
+
+
+def variable_groups(
+    station: Station, values: Mapping[str, Value], unavailable: Iterable[str] = ()
+) -> list[VariableGroup]:
+    model = station.model
+    down = set(unavailable)
+    owners: list[tuple[str, str, tuple[str, ...]]] = [
+        (r.name, r.description, r.variables) for r in station.resources
+    ]
+    owned = {name for _, _, names in owners for name in names}
+    rest = tuple(v.name for v in model.variables if v.name not in owned)
+    if rest:
+        owners.append(("", "product and station state (no resource)", rest))
+    groups = []
+    for resource, description, names in owners:
+        variables = [model.variable(n) for n in names if n in model.variable_index]
+        kinds = []
+        for kind in KIND_ORDER:
+            rows = tuple(
+                VariableRow(
+                    v.name,
+                    format_value(values[v.name]) if v.name in values else "?",
+                    kind.value,
+                    kind in SETTABLE,
+                )
+                for v in variables
+                if v.kind is kind
+            )
+            if rows:
+                kinds.append((kind.value, rows))
+        groups.append(VariableGroup(resource, description, resource in down, tuple(kinds)))
+    return groups
+
+
+def settable_variables(model: Model) -> list[str]:
+    return [v.name for v in model.variables if v.kind in SETTABLE]
+
+
+def domain_texts(model: Model, name: str) -> list[str]:
+    return [format_value(v) for v in model.variable(name).domain]
+
+
+@dataclass(frozen=True)
+class StateRow:
+    """An intention or an operation with its state, and why it is in error."""
+
+    name: str
+    description: str
+    state: str  # i, e, f, error
+    why: str = ""  # the reason it went to error, from the recent events
+    failures: int = 0
+    armed: bool = False  # intention: starts by itself when its precondition holds
+    resetting: bool = False  # operation: being reset in restart mode
+
+
+def intention_rows(
+    station: Station, states: Mapping[str, str], armed: Iterable[str], events: Sequence[Event]
+) -> list[StateRow]:
+    starting = set(armed)
+    return [
+        StateRow(
+            i.name,
+            i.description,
+            states.get(i.name, "i"),
+            error_reason(events, "intention", i.name) if states.get(i.name) == "error" else "",
+            armed=i.name in starting,
+        )
+        for i in station.intentions
+    ]
+
+
+def operation_rows(
+    station: Station,
+    states: Mapping[str, str],
+    failures: Mapping[str, int],
+    resets: Iterable[str],
+    events: Sequence[Event],
+) -> list[StateRow]:
+    resetting = set(resets)
+    return [
+        StateRow(
+            o.name,
+            o.description,
+            states.get(o.name, "i"),
+            error_reason(events, "operation", o.name) if states.get(o.name) == "error" else "",
+            failures.get(o.name, 0),
+            resetting=o.name in resetting,
+        )
+        for o in station.operations
+    ]
+
+
+# -- the simulation panel ----------------------------------------------------------------------
+
+
+def fault_words(kind: str, resource: str, effect: str, instead: str, count: int,
+                values: Mapping[str, Value]) -> str:  # fmt: skip
+    """A simulated fault (hw.sim.Fault's fields) in plain words."""
+    times = "" if count == 1 else f" ({count} times)"
+    match kind:
+        case "disconnect":
+            return f"{resource} stops answering"
+        case "reconnect":
+            return f"{resource} answers again"
+        case "block_effect":
+            return f"{effect} never happens"
+        case "unblock_effect":
+            return f"{effect} happens again"
+        case "replace_effect":
+            return f"{instead} happens instead of {effect}{times}"
+        case "set":
+            changes = ", ".join(f"{n} := {format_value(v)}" for n, v in values.items())
+            return f"someone changes the world by hand: {changes}"
+    return kind
