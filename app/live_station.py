@@ -248,11 +248,17 @@ class LiveStation:
         events += self._tick(Inputs(report.measured, report.observed, report.heartbeats), now)
         for request in actions:
             action: Action = request.payload
-            if isinstance(action, MaintenanceDone):
+            # the tick's measurements were taken above: this tick carries the action alone
+            inputs = Inputs(heartbeats=report.heartbeats, actions=(action,))
+            try:
+                own = self._tick(inputs, now)
+            except Exception as exc:  # one bad request must not cost the others their answer
+                log.exception("action %r failed", action)
+                request.future.set_exception(StationError(f"the station could not do that: {exc}"))
+                continue
+            if isinstance(action, MaintenanceDone) and _accepted(own, "maintenance done"):
+                # the person did it in the world: the simulated devices see it too
                 self.world.maintenance(action.transition)
-                report = self.world.report()
-            inputs = Inputs(report.measured, report.observed, report.heartbeats, (action,))
-            own = self._tick(inputs, now)
             events += own
             answers.append((request, own))
         for event in events:
@@ -573,6 +579,10 @@ class LiveStation:
                     loop.call_soon_threadsafe(_offer, changes, kind)
                 except RuntimeError:  # that client's event loop is closed
                     self.unsubscribe(changes)
+
+
+def _accepted(events: list[Event], what: str) -> bool:
+    return any(e.kind == "operator" and e.subject == what for e in events)
 
 
 def _offer(changes: asyncio.Queue[str], kind: str) -> None:

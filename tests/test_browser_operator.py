@@ -31,7 +31,7 @@ def sign_in(page: Any, station: RunningStation, name: str) -> None:
     page.fill("input[name=new_password]", new_password(name))
     page.fill("input[name=repeat]", new_password(name))
     page.locator("form[action='/password'] button[type=submit]").click()
-    page.wait_for_url(station.url + "/")
+    page.wait_for_url(lambda url: not url.endswith(("/password", "/login")))
     station.changed.add(name)
 
 

@@ -6,7 +6,7 @@ from typing import Annotated
 
 from fastapi import APIRouter, Form, HTTPException, Request
 from fastapi.responses import RedirectResponse, Response
-from pydantic import BaseModel
+from pydantic import BaseModel, Field
 
 from app.auth import hash_password as new_hash
 from app.auth import password_matches, password_problem, user_named
@@ -14,6 +14,7 @@ from app.store import audit
 from app.store.audit import AuditEntry
 from app.store.tables import User
 from app.web.deps import csrf_token, page_context, server
+from app.web.schemas import Invalid, Message
 from app.web.server import Server
 
 router = APIRouter()
@@ -147,8 +148,8 @@ def change_password(
 
 
 class TokenRequest(BaseModel):
-    name: str
-    password: str
+    name: str = Field(min_length=1, max_length=64)
+    password: str = Field(min_length=1, max_length=200)
 
 
 class TokenAnswer(BaseModel):
@@ -157,7 +158,17 @@ class TokenAnswer(BaseModel):
     role: str
 
 
-@router.post("/api/token", tags=["auth"], responses={401: {}, 403: {}, 429: {}})
+@router.post(
+    "/api/token",
+    tags=["auth"],
+    responses={
+        400: {"model": Message, "description": "the body is not JSON"},
+        401: {"model": Message, "description": "wrong user name or password"},
+        403: {"model": Message, "description": "the first-login password is not changed yet"},
+        422: {"model": Invalid, "description": "a field is missing or too long"},
+        429: {"model": Message, "description": "too many failed sign-ins"},
+    },
+)
 def api_token(request: Request, body: TokenRequest) -> TokenAnswer:
     """A bearer token for line systems (MES): valid 12 hours, void when the password changes."""
     srv = server(request)

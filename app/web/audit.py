@@ -1,0 +1,384 @@
+"""The auditor's pages: the audit log, filtered and paged, and its CSV export.
+
+The filter lives in the query string, so a filtered view can be bookmarked or sent on, and
+the CSV export takes the same parameters.  Times are UTC throughout: the form's
+`datetime-local` inputs are read as UTC, and ISO 8601 with a zone is accepted in the query
+string.  A filter that cannot be read is a 422 that says what to fix.  Exporting is itself
+audited (kind `audit`), since it takes the log out of the station.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from collections.abc import Iterator
+from dataclasses import asdict, dataclass
+from datetime import UTC, datetime
+from typing import Annotated, Any
+from urllib.parse import urlencode
+
+from fastapi import APIRouter, Depends, HTTPException, Query, Request
+from fastapi.responses import Response, StreamingResponse
+from sqlalchemy.orm import Session
+
+from app.store import audit
+from app.store.audit import AuditEntry, AuditFilter
+from app.store.tables import AuditRecord
+from app.web.deps import Caller, page_context, require, server
+
+router = APIRouter(include_in_schema=False)
+
+# the longest a filter value can usefully be: the columns' widths (app.store.tables)
+USER_CHARS, KIND_CHARS, RESOURCE_CHARS, STATION_CHARS, TEXT_CHARS = 64, 32, 64, 64, 200
+TIME_CHARS = 64
+TIME_EXAMPLE = "2025-05-01T14:30 (UTC) or 2025-05-01T16:30:00+02:00"
+# kinds shown with the error mark (ISA-101: colour only for what is abnormal)
+ABNORMAL_KINDS = frozenset({"error", "forbidden", "unexpected"})
+SUMMARY_CHARS = 90
+
+
+# -- the filter ----------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Criteria:
+    """A filter as the store reads it (`where`) and as it was given (`given`, for links)."""
+
+    where: AuditFilter
+    given: dict[str, str]
+
+    def query(self, **extra: object) -> str:
+        """The query string ("" or "?...") of this filter, with `extra` parameters added."""
+        parameters = {**self.given, **{k: str(v) for k, v in extra.items()}}
+        return "?" + urlencode(parameters) if parameters else ""
+
+    def described(self) -> dict[str, object]:
+        """The filter for the audit record of an export: what was given, times in UTC."""
+        out: dict[str, object] = {
+            k: v for k, v in asdict(self.where).items() if v not in ("", None)
+        }
+        for name, time in (("since", self.where.since), ("until", self.where.until)):
+            if time is not None:
+                out[name] = iso(time)
+        return out
+
+
+def iso(time: float) -> str:
+    """A time as UTC ISO 8601 with milliseconds: 2025-05-01T14:30:00.000Z."""
+    moment = datetime.fromtimestamp(time, UTC)
+    return moment.isoformat(timespec="milliseconds").replace("+00:00", "Z")
+
+
+def parse_time(name: str, text: str) -> float | None:
+    """`text` as seconds since the epoch; no zone means UTC; "" means no limit."""
+    text = text.strip()
+    if not text:
+        return None
+    for candidate in _spellings(text):
+        try:
+            moment = datetime.fromisoformat(candidate)
+        except ValueError:
+            continue
+        if moment.tzinfo is None:
+            moment = moment.replace(tzinfo=UTC)
+        try:
+            return moment.timestamp()
+        except (OverflowError, OSError, ValueError):
+            break
+    shown = text if len(text) <= 40 else text[:40] + "…"
+    raise HTTPException(
+        422, f"{name}: '{shown}' is not a date and time; use for example {TIME_EXAMPLE}"
+    )
+
+
+def _spellings(text: str) -> list[str]:
+    """`text`, upper-cased (RFC 3339 allows 't' and 'z'), and with a zone's '+' restored
+    when an unencoded query string turned it into a space."""
+    upper = text.upper()
+    spellings = [upper]
+    zone = re.match(r"^(.*\d{2}:\d{2}(?::\d{2}(?:\.\d+)?)?) (\d{2}(?::?\d{2})?)$", upper)
+    if zone:
+        spellings.append(f"{zone.group(1)}+{zone.group(2)}")
+    return spellings
+
+
+LIMITS = {
+    "since": TIME_CHARS,
+    "until": TIME_CHARS,
+    "user": USER_CHARS,
+    "kind": KIND_CHARS,
+    "resource": RESOURCE_CHARS,
+    "station": STATION_CHARS,
+    "text": TEXT_CHARS,
+}
+
+
+def criteria(
+    since: str = "",
+    until: str = "",
+    user: str = "",
+    kind: str = "",
+    resource: str = "",
+    station: str = "",
+    text: str = "",
+) -> Criteria:
+    """The filter from query parameters, or a 422 that says which one to fix and how."""
+    given = {
+        "since": since.strip(),
+        "until": until.strip(),
+        "user": user.strip(),
+        "kind": kind.strip(),
+        "resource": resource.strip(),
+        "station": station.strip(),
+        "text": text.strip(),
+    }
+    for name, value in given.items():
+        if len(value) > LIMITS[name]:
+            raise HTTPException(422, f"{name}: at most {LIMITS[name]} characters, not {len(value)}")
+    start, end = parse_time("since", given["since"]), parse_time("until", given["until"])
+    if start is not None and end is not None and start > end:
+        raise HTTPException(
+            422, f"since ({iso(start)}) is after until ({iso(end)}); swap them or widen the range"
+        )
+    where = AuditFilter(
+        since=start,
+        until=end,
+        user=given["user"],
+        kind=given["kind"],
+        resource=given["resource"],
+        station=given["station"],
+        text=given["text"],
+    )
+    return Criteria(where, {k: v for k, v in given.items() if v})
+
+
+def parse_page(text: str) -> int:
+    """A 1-based page number from the query string, or a 422."""
+    try:
+        page = int(text.strip())
+    except ValueError:
+        shown = text if len(text) <= 20 else text[:20] + "…"
+        raise HTTPException(
+            422, f"page: '{shown}' is not a whole number; pages are numbered from 1"
+        ) from None
+    if page < 1:
+        raise HTTPException(422, f"page: {page} is not a page; pages are numbered from 1")
+    return page
+
+
+def filter_dependency(
+    since: Annotated[
+        str,
+        Query(
+            max_length=TIME_CHARS,
+            description="records at or after this time, ISO 8601 (2025-05-01T14:30:00Z); "
+            "no zone means UTC, empty means no limit",
+        ),
+    ] = "",
+    until: Annotated[
+        str,
+        Query(
+            max_length=TIME_CHARS,
+            description="records at or before this time, ISO 8601; no zone means UTC, "
+            "empty means no limit",
+        ),
+    ] = "",
+    user: Annotated[str, Query(max_length=USER_CHARS, description="exactly this user")] = "",
+    kind: Annotated[str, Query(max_length=KIND_CHARS, description="exactly this kind")] = "",
+    resource: Annotated[
+        str, Query(max_length=RESOURCE_CHARS, description="exactly this resource")
+    ] = "",
+    station: Annotated[
+        str, Query(max_length=STATION_CHARS, description="exactly this station")
+    ] = "",
+    text: Annotated[str, Query(max_length=TEXT_CHARS, description="contained in the subject")] = "",
+) -> Criteria:
+    """The filter's query parameters, for /audit.csv and /api/audit (the page reads them
+    itself, so that a bad filter comes back in the form)."""
+    return criteria(since, until, user, kind, resource, station, text)
+
+
+# -- rows as the page shows them -----------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Row:
+    id: int
+    time: str
+    station: str
+    user: str
+    kind: str
+    subject: str
+    resource: str
+    summary: str  # the detail on one line, shortened
+    pretty: str  # the detail, indented ("" when there is none)
+    abnormal: bool
+
+
+def detail_of(record: AuditRecord) -> dict[str, Any]:
+    """The record's detail JSON as a mapping (a non-object is kept under "value")."""
+    try:
+        detail = json.loads(record.detail or "{}")
+    except ValueError:
+        return {"value": record.detail}
+    return detail if isinstance(detail, dict) else {"value": detail}
+
+
+def row_of(record: AuditRecord) -> Row:
+    detail = detail_of(record)
+    parts = [f"{key}: {_compact(value)}" for key, value in detail.items()]
+    summary = ", ".join(parts)
+    if len(summary) > SUMMARY_CHARS:
+        summary = summary[: SUMMARY_CHARS - 1] + "…"
+    pretty = json.dumps(detail, indent=2, ensure_ascii=False, default=str) if detail else ""
+    return Row(
+        record.id,
+        iso(record.time),
+        record.station,
+        record.user,
+        record.kind,
+        record.subject,
+        record.resource,
+        summary,
+        pretty,
+        record.kind in ABNORMAL_KINDS,
+    )
+
+
+def _compact(value: object) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if value is None:
+        return "none"
+    if isinstance(value, str):
+        return value
+    return json.dumps(value, ensure_ascii=False, separators=(", ", ": "), default=str)
+
+
+def time_input(time: float | None) -> str:
+    """A time for a `datetime-local` input (UTC, seconds only when there are any)."""
+    if time is None:
+        return ""
+    moment = datetime.fromtimestamp(time, UTC)
+    if moment.second or moment.microsecond:
+        return moment.strftime("%Y-%m-%dT%H:%M:%S")
+    return moment.strftime("%Y-%m-%dT%H:%M")
+
+
+# -- routes --------------------------------------------------------------------------------------
+
+
+@router.get("/audit")
+def audit_page(
+    request: Request,
+    caller: Annotated[Caller, Depends(require("audit"))],
+    since: str = "",
+    until: str = "",
+    user: str = "",
+    kind: str = "",
+    resource: str = "",
+    station: str = "",
+    text: str = "",
+    page: str = "1",
+) -> Response:
+    """The log page; a filter it cannot read comes back as the page itself, with the
+    message and the form as given, so the auditor can correct it (422)."""
+    srv = server(request)
+    raw = {
+        "since": since,
+        "until": until,
+        "user": user,
+        "kind": kind,
+        "resource": resource,
+        "station": station,
+        "text": text,
+    }
+    try:
+        chosen = criteria(**raw)
+        number = parse_page(page)
+    except HTTPException as exc:
+        form = {k: v[: LIMITS[k]] for k, v in raw.items()}
+        with srv.store.sessions() as session:
+            choices = _choices(session, form)
+        context = page_context(
+            request, caller, "audit", error=str(exc.detail), form=form, choices=choices
+        )
+        return _page(request, context, exc.status_code)
+    with srv.store.sessions() as session:
+        found = audit.page_of(session, chosen.where, number)
+        rows = [row_of(r) for r in found.records]
+        choices = _choices(session, chosen.given)
+    where = chosen.where
+    context = page_context(
+        request,
+        caller,
+        "audit",
+        results=True,
+        rows=rows,
+        total=found.total,
+        page_number=found.page,
+        pages=found.pages,
+        page_url=lambda n: "/audit" + chosen.query(page=n),
+        csv_url="/audit.csv" + chosen.query(),
+        filtered=bool(chosen.given),
+        form={
+            "since": time_input(where.since),
+            "until": time_input(where.until),
+            "user": where.user,
+            "kind": where.kind,
+            "resource": where.resource,
+            "station": where.station,
+            "text": where.text,
+        },
+        choices=choices,
+    )
+    return _page(request, context, 200)
+
+
+def _page(request: Request, context: dict[str, Any], status: int) -> Response:
+    response: Response = server(request).templates.TemplateResponse(
+        request, "audit.html", context, status_code=status
+    )
+    response.headers["Cache-Control"] = "no-store"
+    return response
+
+
+def _choices(session: Session, given: dict[str, str]) -> dict[str, list[str]]:
+    """The selects' choices: the values in the log, and a chosen one even if absent."""
+    return {
+        column: _with(audit.distinct_values(session, column), given.get(column, ""))
+        for column in ("user", "kind", "resource", "station")
+    }
+
+
+def _with(values: list[str], chosen: str) -> list[str]:
+    return values if not chosen or chosen in values else sorted([*values, chosen])
+
+
+@router.get("/audit.csv")
+def audit_csv(
+    request: Request,
+    caller: Annotated[Caller, Depends(require("audit"))],
+    chosen: Annotated[Criteria, Depends(filter_dependency)],
+) -> StreamingResponse:
+    """The filtered log as CSV, oldest first; the export is audited before it starts."""
+    srv = server(request)
+    now = srv.live.wall()
+    audit.append_committed(
+        srv.store.sessions,
+        srv.live.name,
+        [AuditEntry("audit", "csv export", caller.name, "", {"filter": chosen.described()})],
+        now,
+    )
+
+    def lines() -> Iterator[str]:
+        with srv.store.sessions() as session:
+            yield from audit.csv_lines(session, chosen.where)
+
+    station = re.sub(r"[^A-Za-z0-9_.-]", "_", srv.live.name) or "station"
+    stamp = datetime.fromtimestamp(now, UTC).strftime("%Y%m%dT%H%M%SZ")
+    headers = {
+        "Content-Disposition": f'attachment; filename="audit-{station}-{stamp}.csv"',
+        "Cache-Control": "no-store",
+    }
+    return StreamingResponse(lines(), media_type="text/csv; charset=utf-8", headers=headers)

