@@ -74,6 +74,10 @@ def test_engineer_edits_the_model_sees_the_error_located_fixes_and_activates(
     page.locator("#station-plans svg").first.wait_for(timeout=30_000)
     screenshot(page, "engineer-station.png")
 
+    page.goto(served.url + "/simulation")
+    assert page.get_by_text("E6: r2 stops answering above the engine").count() >= 1
+    screenshot(page, "engineer-simulation.png")
+
 
 def _start(name: str) -> Any:
     from planner.runner_io import StartIntention

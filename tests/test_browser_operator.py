@@ -153,6 +153,10 @@ def test_e6_operator_moves_r2_home_from_a_task_card_on_a_watch(
 
     seen = operate(watch, served, finished(served, "tighten_bolts"), on_card)
     assert ("instruction", "Move r2 home by hand") in seen, seen
+    watch.goto(served.url + "/alarms")  # r2 was not answering: an alarm waits for a person
+    assert watch.locator("li.alarm[data-key='resource:r2']").count() == 1
+    assert_fits_the_watch(watch)
+    screenshot(watch, "operator-watch-alarms.png")
     state = served.live.view.state
     assert state.values["r2.pos"] == "home"
     assert all(state.values[f"bp{k}.state"] == "tightened" for k in range(1, 5))

@@ -15,7 +15,7 @@ from fastapi import HTTPException
 
 from app.live_station import LiveStation, StationError
 from planner.loading import closest
-from planner.model import VariableKind
+from planner.model import TransitionKind, VariableKind
 from planner.runner_io import Action, Event
 
 T = TypeVar("T")
@@ -81,3 +81,17 @@ def estimated_value(live: LiveStation, variable: str, text: str) -> tuple[str, b
             return variable, value
     shown = ", ".join(str(v).lower() if isinstance(v, bool) else str(v) for v in domain)
     raise HTTPException(422, f"'{text}' is not a value of {variable}; use one of {shown}")
+
+
+def maintenance_step(live: LiveStation, transition: str) -> str:
+    """A maintenance transition a task card asks for now: 404 for no such maintenance
+    transition, 409 for one nobody asked for."""
+    from app.views import task_cards
+
+    model = live.model.station.model
+    names = [t.name for t in model.transitions if t.kind is TransitionKind.MAINTENANCE]
+    known(transition, names, "maintenance transition")
+    asked = {c.transition for c in task_cards(live.view) if c.kind == "instruction"}
+    if transition not in asked:
+        raise StationError(f"{transition}: not a maintenance step asked for now")
+    return transition

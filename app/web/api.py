@@ -58,7 +58,6 @@ from app.web.schemas import (
 )
 from app.web.server import Server
 from planner.loading import closest
-from planner.model import TransitionKind
 from planner.runner_io import (
     Approve,
     CancelIntention,
@@ -182,14 +181,7 @@ async def maintenance_done(
     """Only a step an instruction card asks for now (see GET /api/tasks); 404 for a name
     that is no maintenance transition.  Needs `tasks`."""
     live = server(request).live
-    view = live.view
-    model = view.model.station.model
-    names = [t.name for t in model.transitions if t.kind is TransitionKind.MAINTENANCE]
-    actions.known(transition, names, "maintenance transition")
-    asked = {c.transition for c in task_cards(view) if c.kind == "instruction"}
-    if transition not in asked:
-        # refused here, before the simulated world would carry it out
-        raise StationError(f"{transition}: not a maintenance step asked for now")
+    actions.maintenance_step(live, transition)
     return _acted(await perform(live, MaintenanceDone(user=caller.name, transition=transition)))
 
 

@@ -8,7 +8,7 @@ from fastapi import APIRouter, Depends, Form, Request
 from fastapi.responses import RedirectResponse, Response
 
 from app.views import task_cards
-from app.web.actions import answer, perform
+from app.web.actions import answer, maintenance_step, perform
 from app.web.deps import Caller, current_caller, page_context, require, server
 from planner.runner_io import Approve, MaintenanceDone, Reject
 
@@ -75,7 +75,9 @@ async def maintenance_done(
     caller: Annotated[Caller, Depends(require("tasks"))],
     transition: Annotated[str, Form(max_length=200)],
 ) -> Response:
-    await perform(server(request).live, MaintenanceDone(user=caller.name, transition=transition))
+    live = server(request).live
+    maintenance_step(live, transition)
+    await perform(live, MaintenanceDone(user=caller.name, transition=transition))
     return back(request, "_tasks.html")
 
 
