@@ -99,3 +99,27 @@ def test_sign_out_ends_the_session(station: RunningStation) -> None:
     assert ("signed out", "engineer") in {
         (r.subject, r.user) for r in audit_kinds(station, "login")
     }
+
+
+def test_an_admin_adds_and_disables_users(station: RunningStation) -> None:
+    admin, engineer = station.client(), station.client()
+    token = station.login(admin, "admin")
+    station.login(engineer, "engineer")
+    assert engineer.get("/users").status_code == 403
+    weak = admin.post(
+        "/users",
+        data={"name": "anna", "role": "operator", "password": "short", "csrf_token": token},
+    )
+    assert weak.status_code == 422 and "at least 10" in weak.text
+    form = {"name": "anna", "role": "operator", "password": "anna-first-pw", "csrf_token": token}
+    assert admin.post("/users", data=form).status_code == 200
+    assert admin.post("/users", data=form).status_code == 409
+    page = admin.get("/users")
+    assert 'data-user="anna"' in page.text
+    off = admin.post(
+        "/users/disable", data={"name": "engineer", "disabled": "true", "csrf_token": token}
+    )
+    assert off.status_code == 200
+    assert engineer.get("/station", follow_redirects=False).status_code == 303  # signed out
+    subjects = {(r.subject, r.user) for r in audit_kinds(station, "user")}
+    assert ("added", "admin") in subjects and ("disabled", "admin") in subjects

@@ -55,7 +55,7 @@ def _optional_routers(app: FastAPI) -> None:
     """Areas built in their own modules (engineer, audit, API), included when present."""
     import importlib
 
-    for name in ("engineer", "audit", "api"):
+    for name in ("engineer", "audit", "api", "users"):
         try:
             module = importlib.import_module(f"app.web.{name}")
         except ModuleNotFoundError as exc:
