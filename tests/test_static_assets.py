@@ -26,15 +26,6 @@ ROOT = Path(__file__).resolve().parent.parent
 TEMPLATES = ROOT / "templates"
 SCREENSHOTS = Path(__file__).resolve().parent / "screenshots"
 DEMO_MODEL = ROOT / "models" / "demo_station.yaml"
-CHROMIUM = Path("/usr/bin/chromium")
-CHROMIUM_ARGS = [
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-    "--no-first-run",
-]
 CSRF = "test-csrf-token"
 WATCH = {"width": 320, "height": 320}
 DESKTOP = {"width": 1280, "height": 800}
