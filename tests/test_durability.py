@@ -16,7 +16,7 @@ from typing import Any
 import httpx
 import pytest
 
-from tests.stations import MODEL, PASSWORDS, form_token, free_port, new_password
+from tests.stations import MODEL, free_port, new_password, sign_in_with_forms
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -24,8 +24,9 @@ ROOT = Path(__file__).resolve().parent.parent
 class Serve:
     """`sp serve` as a child process on its own port and database."""
 
-    def __init__(self, db: Path) -> None:
+    def __init__(self, db: Path, *extra: str) -> None:
         self.db = db
+        self.extra = list(extra)
         self.port = free_port()
         self.url = f"http://127.0.0.1:{self.port}"
         self.process: subprocess.Popen[bytes] | None = None
@@ -33,6 +34,7 @@ class Serve:
     def start(self) -> None:
         command = [sys.executable, "-m", "app.cli", "serve", "--model", str(MODEL)]
         command += ["--db", f"sqlite:///{self.db}", "--port", str(self.port), "--period", "0.05"]
+        command += self.extra
         self.process = subprocess.Popen(
             command, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=os.environ
         )
@@ -71,30 +73,10 @@ def serve(tmp_path: Path) -> Iterator[Serve]:
     server.stop()
 
 
-def token(url: str, name: str, first: bool) -> str:
+def token(url: str, name: str) -> str:
     """Sign in through the forms (changing the first-login password), then get a token."""
     with httpx.Client(base_url=url) as browser:
-        if first:
-            page = browser.get("/login")
-            answer = browser.post(
-                "/login",
-                data={
-                    "name": name,
-                    "password": PASSWORDS[name],
-                    "csrf_token": form_token(page.text),
-                },
-            )
-            assert answer.status_code == 303 and answer.headers["location"] == "/password"
-            page = browser.get("/password")
-            answer = browser.post(
-                "/password",
-                data={
-                    "new_password": new_password(name),
-                    "repeat": new_password(name),
-                    "csrf_token": form_token(page.text),
-                },
-            )
-            assert answer.status_code == 303, answer.text
+        sign_in_with_forms(browser, name, first=True)
         answer = browser.post("/api/token", json={"name": name, "password": new_password(name)})
         assert answer.status_code == 200, answer.text
         return str(answer.json()["token"])
@@ -117,7 +99,7 @@ def audit_rows(db: Path) -> list[tuple[Any, ...]]:
 
 def test_kill_9_loses_no_state_and_no_committed_audit_record(serve: Serve) -> None:
     serve.start()
-    headers = {"Authorization": f"Bearer {token(serve.url, 'engineer', first=True)}"}
+    headers = {"Authorization": f"Bearer {token(serve.url, 'engineer')}"}
     with httpx.Client(base_url=serve.url, headers=headers, timeout=60) as api:
         assert api.post("/api/intentions/assemble_engine/start").status_code == 200
         deadline = time.monotonic() + 60
@@ -157,3 +139,45 @@ def test_kill_9_loses_no_state_and_no_committed_audit_record(serve: Serve) -> No
     )
     assert check.returncode == 0, check.stdout + check.stderr
     assert f"{len(rows)} records" in check.stdout or "records" in check.stdout
+
+
+def test_a_pending_approval_survives_kill_9_and_can_be_given_after(tmp_path: Path) -> None:
+    """E2 up to the forbidden state: the recovery step waits for the operator's approval when
+    the process dies; after the restart the same card waits, and approving it goes on."""
+    serve = Serve(tmp_path / "station.db", "--speed", "4")
+    try:
+        serve.start()
+        engineer = {"Authorization": f"Bearer {token(serve.url, 'engineer')}"}
+        operator = {"Authorization": f"Bearer {token(serve.url, 'operator')}"}
+        with httpx.Client(base_url=serve.url, timeout=60) as api:
+            played = api.post("/api/experiments/e2_oil_filter_early/play", headers=engineer)
+            assert played.status_code == 200, played.text
+            deadline = time.monotonic() + 90
+            while True:
+                assert time.monotonic() < deadline, "no approval card"
+                cards = api.get("/api/tasks", headers=operator).json()
+                if any(c["kind"] == "approval" for c in cards):
+                    break
+                for card in cards:
+                    if card["kind"] == "command":
+                        api.post(f"/api/cards/{card['card']}/done", headers=operator)
+                time.sleep(0.1)
+            waiting = [c for c in cards if c["kind"] == "approval"]
+        serve.kill()
+
+        serve.start()
+        with httpx.Client(base_url=serve.url, timeout=60) as api:
+            cards = api.get("/api/tasks", headers=operator).json()
+            assert [c for c in cards if c["kind"] == "approval"] == waiting
+            step = waiting[0]["step"]
+            approved = api.post(
+                f"/api/approvals/{step}", headers=operator, json={"decision": "approve"}
+            )
+            assert approved.status_code == 200, approved.text
+            cards = api.get("/api/tasks", headers=operator).json()
+            assert any(
+                c["kind"] == "instruction" and c["transition"] == "operator.remove_oil_filters"
+                for c in cards
+            ), cards
+    finally:
+        serve.stop()
