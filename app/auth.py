@@ -19,29 +19,14 @@ from app.store.tables import Setting, User
 
 ROLES = ("operator", "engineer", "auditor", "admin")
 # what each role may do; pages and API routes name the permission they need
+_OPERATOR = frozenset({"tasks", "alarms", "acknowledge"})
+_ENGINEER = _OPERATOR | {"station", "control", "model", "activate", "simulate", "audit"}
 PERMISSIONS: dict[str, frozenset[str]] = {
-    "operator": frozenset({"tasks", "alarms", "acknowledge"}),
-    "engineer": frozenset(
-        {"tasks", "alarms", "acknowledge", "station", "control", "model", "simulate", "audit"}
-    ),
+    "operator": _OPERATOR,
+    "engineer": _ENGINEER,
     "auditor": frozenset({"alarms", "audit"}),
-    "admin": frozenset(
-        {
-            "tasks",
-            "alarms",
-            "acknowledge",
-            "station",
-            "control",
-            "model",
-            "activate",
-            "simulate",
-            "audit",
-            "users",
-        }
-    ),
+    "admin": _ENGINEER | {"users"},
 }
-# engineers activate models too: the "an operator cannot activate a model"
-PERMISSIONS["engineer"] = PERMISSIONS["engineer"] | {"activate"}
 
 # the demo station's users and their first-login passwords (printed on start, in the README)
 DEMO_USERS = (

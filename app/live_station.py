@@ -27,7 +27,7 @@ from sqlalchemy import select
 
 from app import supervisor_cache
 from app.alarms import Alarm, AlarmBook, AlarmChange, conditions
-from app.scenario import Scenario, ScheduledFault
+from app.scenario import Scenario, ScheduledFault, due
 from app.store import audit
 from app.store.audit import AuditEntry
 from app.store.db import Store
@@ -35,7 +35,6 @@ from app.store.tables import AlarmRecord, ModelVersion, StationRecord
 from hw.sim import Fault, SimulatedWorld
 from planner import runner_snapshot
 from planner.expressions import Value
-from planner.model import VariableKind
 from planner.operation_planner import OperationPlanner
 from planner.runner import Runner, RunnerState
 from planner.runner_io import Action, Event, Inputs, MaintenanceDone, RunnerConfig, StartIntention
@@ -302,10 +301,7 @@ class LiveStation:
     def _fire_faults(self, now: float, entries: list[AuditEntry]) -> list[Event]:
         fired = []
         for scheduled in list(self.pending_faults):
-            due = (scheduled.at is not None and now >= scheduled.at) or (
-                scheduled.when is not None and self.runner.holds(scheduled.when, self.state.values)
-            )
-            if due:
+            if due(scheduled, now, self.runner, self.state.values):
                 self.pending_faults.remove(scheduled)
                 self.world.inject(scheduled.fault)
                 fired.append(Event(now, "fault", scheduled.fault.kind, {"fault": scheduled.text}))
@@ -618,7 +614,3 @@ def _alarm_from_json(text: str) -> Alarm:
     if data.get("shelved_state") is not None:
         data["shelved_state"] = AlarmState(data["shelved_state"])
     return Alarm(**data)
-
-
-def command_values(runner: Runner, state: RunnerState) -> dict[str, Value]:
-    return {n: v for n, v in state.values.items() if runner.kind[n] is VariableKind.COMMAND}

@@ -363,14 +363,12 @@ def play(
     answers: list[tuple[float, Action]] = []  # the simulated operator's actions, when due
     published: dict[str, Value] = dict(state.values)
     while now <= scenario.until:
-        for scheduled in [f for f in pending if _due(f, now, runner, state.values)]:
+        for scheduled in [f for f in pending if due(f, now, runner, state.values)]:
             pending.remove(scheduled)
             world.inject(scheduled.fault)
             yield Event(now, "fault", scheduled.fault.kind, {"fault": scheduled.text})
         world.advance(published, now)
-        for scheduled_action in [
-            a for a in scheduled_actions if _due(a, now, runner, state.values)
-        ]:
+        for scheduled_action in [a for a in scheduled_actions if due(a, now, runner, state.values)]:
             scheduled_actions.remove(scheduled_action)
             answers.append((now, scheduled_action.action))
         actions = tuple(a for t, a in answers if t <= now)
@@ -396,7 +394,7 @@ def play(
     yield Event(now, "stopped", "time limit", {"until": scenario.until})
 
 
-def _due(
+def due(
     scheduled: ScheduledFault | ScheduledAction,
     now: float,
     runner: Runner,

@@ -6,13 +6,12 @@ Pure functions of a `StationView`; no control logic (the runner decides, this on
 from __future__ import annotations
 
 import re
-from collections.abc import Iterable
 from dataclasses import dataclass
 
 from app.live_station import StationView
+from app.plan_view import error_reason
 from planner.model import TransitionKind
 from planner.runner import TransitionPlan
-from planner.runner_io import Event
 
 
 @dataclass(frozen=True)
@@ -147,15 +146,6 @@ def _failure(view: StationView, operation: str) -> str:
     if not operation:
         return "An error needs your hands"
     description = view.model.station.operation(operation).description or operation
-    reason = last_reason(view.events, operation)
+    reason = error_reason(view.events, "operation", operation)
     text = f"Failed: {sentence(description)[:1].lower()}{sentence(description)[1:]}"
     return f"{text} ({reason})" if reason else text
-
-
-def last_reason(events: Iterable[Event], subject: str) -> str:
-    reason = ""
-    for event in events:
-        kind, after = event.kind, event.detail.get("after")
-        if kind == "operation" and event.subject == subject and after == "error":
-            reason = str(event.detail.get("why", ""))
-    return reason

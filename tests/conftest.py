@@ -1,10 +1,12 @@
 """Test configuration: hypothesis explores randomly on developers' machines, and replays a
-fixed sequence of examples in CI so that main cannot turn red without a change."""
+fixed sequence of examples in CI so that main cannot turn red without a change; running
+stations and Debian's Chromium for the web tests."""
 
 from __future__ import annotations
 
 import os
 
+import pytest
 from hypothesis import settings
 
 settings.register_profile("ci", derandomize=True, database=None, print_blob=True)
@@ -16,9 +18,6 @@ if "SP_CACHE_DIR" not in os.environ:
     import tempfile
 
     os.environ["SP_CACHE_DIR"] = tempfile.mkdtemp(prefix="sp-test-cache-")
-
-
-import pytest  # noqa: E402
 
 
 @pytest.fixture

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import httpx
 import uvicorn
 from fastapi.testclient import TestClient
 
@@ -43,6 +44,23 @@ def form_token(html: str) -> str:
     return found.group(1)
 
 
+def sign_in_with_forms(client: httpx.Client, name: str, first: bool) -> None:
+    """Sign in through the login form; the first time, change the first-login password
+    (to `new_password(name)`) as the station demands."""
+    page = client.get("/login")
+    password = PASSWORDS[name] if first else new_password(name)
+    form = {"name": name, "password": password, "csrf_token": form_token(page.text)}
+    response = client.post("/login", data=form, follow_redirects=False)
+    assert response.status_code == 303, response.text
+    assert (response.headers["location"] == "/password") == first
+    if first:
+        page = client.get("/password")
+        form = {"new_password": new_password(name), "repeat": new_password(name)}
+        form["csrf_token"] = form_token(page.text)
+        response = client.post("/password", data=form, follow_redirects=False)
+        assert response.status_code == 303, response.text
+
+
 @dataclass
 class RunningStation:
     built: Built
@@ -62,27 +80,8 @@ class RunningStation:
     def login(self, client: TestClient, name: str) -> str:
         """Sign `name` in through the forms (changing the first-login password once);
         returns the session's CSRF token."""
-        page = client.get("/login")
-        password = new_password(name) if name in self.changed else PASSWORDS[name]
-        response = client.post(
-            "/login",
-            data={"name": name, "password": password, "csrf_token": form_token(page.text)},
-            follow_redirects=False,
-        )
-        assert response.status_code == 303, response.text
-        if response.headers["location"] == "/password":
-            page = client.get("/password")
-            response = client.post(
-                "/password",
-                data={
-                    "new_password": new_password(name),
-                    "repeat": new_password(name),
-                    "csrf_token": form_token(page.text),
-                },
-                follow_redirects=False,
-            )
-            assert response.status_code == 303, response.text
-            self.changed.add(name)
+        sign_in_with_forms(client, name, first=name not in self.changed)
+        self.changed.add(name)
         return form_token(client.get("/alarms").text)
 
     def token(self, client: TestClient, name: str) -> str:

@@ -16,14 +16,13 @@ from fastapi import APIRouter, Depends, HTTPException, Path, Query, Request
 from fastapi.responses import JSONResponse
 from fastapi.security import HTTPBearer
 
-from app.auth import allowed
 from app.live_station import StationError
 from app.store import audit, versions
 from app.views import task_cards
 from app.web import actions, model_editing
 from app.web.actions import answer, perform
 from app.web.audit import Criteria, filter_dependency
-from app.web.deps import Caller, check_csrf, current_caller, require, server
+from app.web.deps import Caller, require, server
 from app.web.schemas import (
     AcknowledgeIn,
     ActionAnswer,
@@ -95,22 +94,6 @@ ACT = _errors(400, 401, 403, 404, 409, 422, 503)
 NamePath = Annotated[str, Path(min_length=1, max_length=200, description="a name in the model")]
 
 
-def require_any(*permissions: str) -> Any:
-    """Like `require`, for routes any one of several permissions opens."""
-
-    async def dependency(request: Request) -> Caller:
-        caller = current_caller(request)
-        if caller is None:
-            raise HTTPException(401, "sign in first: POST /api/token, then send a bearer token")
-        if not any(allowed(caller.role, p) for p in permissions):
-            needs = " or ".join(f"'{p}'" for p in permissions)
-            raise HTTPException(403, f"a {caller.role} may not do this (needs {needs})")
-        await check_csrf(request, caller)
-        return caller
-
-    return dependency
-
-
 def _acted(events: list[Event]) -> ActionAnswer:
     return ActionAnswer(events=events_out(events))
 
@@ -125,7 +108,7 @@ def _acted(events: list[Event]) -> ActionAnswer:
     responses=_errors(401, 403),
 )
 def get_station(
-    request: Request, _caller: Annotated[Caller, Depends(require_any("station", "tasks"))]
+    request: Request, _caller: Annotated[Caller, Depends(require("station", "tasks"))]
 ) -> StationOut:
     """Needs `station` or `tasks`.  Plans list their steps with the partial order: each step
     waits for the steps in its `after` list; the others may run in parallel."""

@@ -92,8 +92,8 @@ async def check_csrf(request: Request, caller: Caller) -> None:
         raise HTTPException(403, "the form has expired or did not come from this station; reload")
 
 
-def require(permission: str) -> Callable[[Request], Awaitable[Caller]]:
-    """A dependency: the caller, who must be signed in and hold `permission`."""
+def require(*permissions: str) -> Callable[[Request], Awaitable[Caller]]:
+    """A dependency: the caller, who must be signed in and hold one of `permissions`."""
 
     async def dependency(request: Request) -> Caller:
         caller = current_caller(request)
@@ -101,8 +101,9 @@ def require(permission: str) -> Callable[[Request], Awaitable[Caller]]:
             if is_api(request):
                 raise HTTPException(401, "sign in first: POST /api/token, then send a bearer token")
             raise LoginRequired()
-        if not allowed(caller.role, permission):
-            raise HTTPException(403, f"a {caller.role} may not do this (needs '{permission}')")
+        if not any(allowed(caller.role, p) for p in permissions):
+            needs = " or ".join(f"'{p}'" for p in permissions)
+            raise HTTPException(403, f"a {caller.role} may not do this (needs {needs})")
         await check_csrf(request, caller)
         return caller
 

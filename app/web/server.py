@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 from fastapi.templating import Jinja2Templates
 
@@ -31,4 +30,3 @@ class Server:
         default_factory=lambda: Jinja2Templates(directory=str(TEMPLATES))
     )
     secure_cookies: bool = False
-    extra: dict[str, Any] = field(default_factory=dict)
