@@ -199,6 +199,13 @@ def _planner(args: argparse.Namespace, model: Model, text: str, engine: str = "b
     return supervisor_cache.planner(model, text, engine, directory)
 
 
+def _remember_order(args: argparse.Namespace, planner: Any, text: str) -> None:
+    from app import supervisor_cache
+
+    directory = None if args.no_cache else supervisor_cache.default_directory()
+    supervisor_cache.remember_order(planner, text, directory)
+
+
 def _goal(station: Station, text: str) -> Expr:
     """The goal; besides variables it may name predicates (`tighten_bp1.goal`)."""
     try:
@@ -224,6 +231,7 @@ def _plan(args: argparse.Namespace, started: float) -> int:
     )
     result = planner.plan(query)
     millis = round((time.perf_counter() - started) * 1000, 3)
+    _remember_order(args, planner, text)
     if args.json:
         print(json.dumps(_plan_json(result, millis)))
     else:
@@ -256,6 +264,7 @@ def _run(args: argparse.Namespace) -> int:
             continue
         print(json.dumps(event.as_json(), default=str) if args.json else event, flush=True)
         finished = event.kind == "done"
+    _remember_order(args, planners.transition, text)
     return 0 if finished else 1
 
 

@@ -4,6 +4,8 @@ Synthesis (the bad states of the specifications) is the slow part of building a 
 large model (seconds on the demo station) and depends only on the model's text.  The cache
 keeps, per model text, the BDD variable order and a checksum (JSON) and the bad states (CUDD's
 DDDMP format), keyed by a SHA-256 of the text, the `dd` version and this format's number.
+After a search has tuned the order (`TransitionPlanner.tuned`), `remember_order` replaces
+the saved order with the tuned one.
 Anything missing, unreadable or inconsistent falls back to synthesis; failing to write is not
 an error.
 """
@@ -57,12 +59,33 @@ def planner(model: Model, text: str, engine: str, directory: Path | None) -> Tra
                 (bad,) = sym.bdd.load(str(bad_path))
                 return bad
 
-            return TransitionPlanner(model, engine, restore=restore)
+            restored = TransitionPlanner(model, engine, restore=restore)
+            restored.tuned = bool(entry.get("tuned", False))
+            return restored
         except (OSError, ValueError, RuntimeError, KeyError, TypeError):
             pass  # a damaged entry: synthesise again and overwrite it
     built = TransitionPlanner(model, engine)
     _save(built, directory, order_path, bad_path)
     return built
+
+
+def remember_order(planner: TransitionPlanner, text: str, directory: Path | None) -> None:
+    """Save the order a search tuned (`TransitionPlanner.tuned`) in the model's entry, so
+    that the next run starts with it; the bad states keep their file (DDDMP loads into any
+    variable order).  Nothing happens without a whole entry or when it is already tuned."""
+    if directory is None or not planner.tuned:
+        return
+    order_path = directory / f"{key(text)}.json"
+    try:
+        entry = json.loads(order_path.read_text())
+        if entry.get("tuned"):
+            return
+        entry.update(order=planner.order(), tuned=True)
+        with tempfile.NamedTemporaryFile("w", dir=directory, delete=False) as tmp:
+            tmp.write(json.dumps(entry))
+        os.replace(tmp.name, order_path)
+    except (OSError, ValueError, AttributeError):
+        pass  # like saving: a read-only or damaged cache only costs the next run its time
 
 
 def _save(built: TransitionPlanner, directory: Path, order_path: Path, bad_path: Path) -> None:

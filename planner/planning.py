@@ -29,6 +29,10 @@ class PlanQuery:
     the plan may pass through states that violate them, must satisfy the other invariants in
     every state, and ends in a good state (every invariant holds and the supervisor can keep
     it so); `goal` is conjoined with that.
+
+    With `fewest_maintenance` (and `maintenance`), a plan first has the fewest maintenance
+    steps, then the fewest steps: a person is not asked to move a robot by hand that can
+    move itself in one step more.
     """
 
     start: State
@@ -39,6 +43,7 @@ class PlanQuery:
     always: Expr | None = None
     disabled: frozenset[str] = frozenset()
     relaxed: frozenset[str] = frozenset()
+    fewest_maintenance: bool = False
 
 
 @dataclass(frozen=True)

@@ -1007,6 +1007,7 @@ class _Tick:
             maintenance=maintenance,
             forbidden=() if maintenance else self.forbidden(executing),
             disabled=frozenset(self.disabled()),
+            fewest_maintenance=maintenance,
         )
 
     def plan_transitions(self, executing: list[str], goal: Expr, reason: str) -> bool:

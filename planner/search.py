@@ -5,154 +5,238 @@ first reached in that many steps; the first layer that meets the goal gives the 
 length, and a backward walk through the layers picks one concrete plan.  Unlike bounded
 model checking, proving that no shorter plan exists costs nothing extra here: the earlier
 layers simply did not meet the goal.
+
+A `Problem` is one search over some of the model's variables (a part of the station, see
+`planner.relevance`); its sets mention only those variables' bits.  The plan picked does
+not depend on the BDD variable order (it is the least minimal plan by transition order),
+so a planner whose order was tuned and cached plans exactly like a fresh one.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
 from planner.model import TransitionKind
-from planner.planning import PlanQuery, PlanResult, PlanStatus, State
+from planner.relevance import reads
 from planner.symbolic import Function, SymbolicModel, SymbolicTransition, cudd
-from planner.synthesis import automatic_guard
-
-# CUDD counts minterms in doubles, which overflow beyond 2^1024
-COUNTABLE_BITS = 1000
+from planner.symmetry import Swapper, canonical, orbit
 
 
-class SymbolicSearch:
-    """Breadth-first planner over a model whose bad states are already known."""
+@dataclass(frozen=True)
+class Problem:
+    """One breadth-first search: every set is over the bits of `variables` alone.
 
-    name = "bdd"
+    Steps of the `counted` transitions (maintenance, when a query minimises the work it
+    asks of people) may be taken at most `budget` times, and the layers are kept apart by
+    how many were taken, so that a state reached with fewer counts as reached first.
+    """
 
-    def __init__(self, sym: SymbolicModel, bad: Function) -> None:
-        self.sym = sym
-        self.bad = bad
+    start: Function
+    goal: Function
+    allowed: Function  # states a plan may visit (good, not forbidden, valid)
+    always: Function  # must hold in every state before the goal (`phi U goal`)
+    automatic: Function  # states where some usable automatic transition is enabled
+    transitions: tuple[SymbolicTransition, ...]
+    variables: tuple[str, ...]
+    max_steps: int
+    counted: frozenset[str] = frozenset()
+    budget: int = 0
+    symmetries: tuple[Swapper, ...] = ()  # swaps of interchangeable objects the query keeps
 
-    def plan(self, query: PlanQuery) -> PlanResult:
-        sym = self.sym
-        usable = [
-            t
-            for t in sym.transitions
-            if t.name not in query.disabled
-            and (query.maintenance or t.kind is not TransitionKind.MAINTENANCE)
-        ]
-        automatic = automatic_guard(sym, query.disabled)
-        goal = sym.expr(query.goal)
-        if query.relaxed:
-            allowed = sym.true
-            for spec in sym.model.specifications:
-                if spec.name not in query.relaxed:
-                    allowed &= sym.expr(spec.invariant)
-            goal &= ~self.bad
-        else:
-            allowed = ~self.bad
-        for predicate in query.forbidden:
-            allowed &= ~sym.expr(predicate)
-        always = sym.expr(query.always) if query.always is not None else sym.true
 
-        start = sym.state(query.start)
-        if start & allowed == sym.false:
-            return PlanResult(PlanStatus.BAD_START, max_steps=query.max_steps, engine=self.name)
+@dataclass(frozen=True)
+class Outcome:
+    found: bool
+    plan: tuple[str, ...] = ()
+    layers: int = 0
+    reached: Function | None = field(default=None, compare=False)
+    exhausted: bool = False  # no state needed the whole budget: a larger one cannot help
 
-        layers = [start]
-        reached = start
-        while True:
-            depth = len(layers) - 1
-            hit = layers[-1] & goal
-            if hit != sym.false:
-                plan, states = self._walk_back(layers, hit, usable, automatic, always)
-                return PlanResult(
-                    PlanStatus.FOUND,
-                    plan,
-                    states,
-                    max_steps=query.max_steps,
-                    engine=self.name,
-                    statistics=self._statistics(depth + 1, reached),
-                )
-            if depth >= query.max_steps:
-                break
+
+Tuner = Callable[[], None]
+"""Called once with the search's layers alive when they first grow large (see `search`)."""
+
+Layer = list[Function]  # one set per number of counted steps taken, 0 .. budget
+
+TUNE_NODES = 20_000
+CANONICAL_ROUNDS = 3
+
+
+def search(sym: SymbolicModel, problem: Problem, tune: Tuner | None = None) -> Outcome:
+    """Breadth-first from the start; the first layer meeting the goal gives the plan.
+
+    `tune` (sifting the variable order) runs when a layer first exceeds `TUNE_NODES`:
+    sifting then sees the sets a search really builds, not just the specifications.
+    """
+    budget = problem.budget
+    plain = tuple(t for t in problem.transitions if t.name not in problem.counted)
+    counted = tuple(t for t in problem.transitions if t.name in problem.counted)
+    false = sym.false
+    layers: list[Layer] = [[problem.start] + [false] * budget]
+    seen = [problem.start] * (budget + 1)  # seen[j]: reached with at most j counted steps
+    tuned = tune is None
+    while True:
+        depth = len(layers) - 1
+        for j, states in enumerate(layers[-1]):
+            hit = states & problem.goal
+            if hit != false:
+                plan = _walk(sym, problem, layers, j, hit)
+                return Outcome(True, plan, len(layers), seen[-1])
+        if depth >= problem.max_steps:
+            break
+        sources = [
             # any set between the layer and everything reached has the same new successors;
             # `restrict` picks a small BDD among them
-            source = cudd.restrict(layers[-1], layers[-1] | ~reached) & always
-            frontier = self._image(source, usable, automatic) & allowed & ~reached
-            if frontier == sym.false:
-                break  # fixpoint: the goal is unreachable at any length
-            layers.append(frontier)
-            reached |= frontier
-        return PlanResult(
-            PlanStatus.UNREACHABLE,
-            max_steps=query.max_steps,
-            engine=self.name,
-            statistics=self._statistics(len(layers), reached),
-        )
-
-    def _statistics(self, layers: int, reached: Function) -> dict[str, float]:
-        """Layers, and states reached where CUDD's double-precision counting can say."""
-        out: dict[str, float] = {"layers": layers}
-        if len(self.sym.state_bits) <= COUNTABLE_BITS:
-            out["reached"] = self.sym.count(reached)
-        return out
-
-    def reachable(self, start: State, *, maintenance: bool = False) -> Function:
-        """Every good state plans can visit from `start`.
-
-        Chained (each transition's image joins the set at once) rather than layered: the
-        fixpoint is the same, reached in far fewer and cheaper iterations, because no exact
-        distance layers are kept.
-        """
-        sym = self.sym
-        usable = [
-            t for t in sym.transitions if maintenance or t.kind is not TransitionKind.MAINTENANCE
+            cudd.restrict(states, states | ~seen[j]) & problem.always
+            for j, states in enumerate(layers[-1])
         ]
-        automatic = automatic_guard(sym)
-        allowed = ~self.bad
-        reached = sym.state(start) & allowed
-        while True:
-            before = reached
-            for t in usable:
-                source = reached if t.kind is TransitionKind.AUTOMATIC else reached & ~automatic
-                reached |= sym.image(t, source) & allowed
-            if reached == before:
-                return reached
+        frontier: Layer = []
+        for j in range(budget + 1):
+            found = image(sym, problem, sources[j], plain)
+            if j > 0:
+                found |= image(sym, problem, sources[j - 1], counted)
+            found &= problem.allowed & ~seen[j]
+            if problem.symmetries and found != false:
+                found = canonical(problem.symmetries, found, CANONICAL_ROUNDS) & ~seen[j]
+            frontier.append(found)
+            for k in range(j, budget + 1):
+                seen[k] |= found
+        if all(f == false for f in frontier):
+            break  # fixpoint: the goal is unreachable at any length
+        layers.append(frontier)
+        if not tuned and max(len(f) for f in frontier) > TUNE_NODES:
+            assert tune is not None
+            tune()
+            tuned = True
+    # a larger budget reaches more only through a counted step out of the last count
+    exhausted = not counted or all(
+        image(sym, problem, layer[budget] & problem.always, counted) & problem.allowed & ~seen[-1]
+        == false
+        for layer in layers
+    )
+    return Outcome(False, layers=len(layers), reached=seen[-1], exhausted=exhausted)
 
-    def _image(
-        self, states: Function, usable: list[SymbolicTransition], automatic: Function
-    ) -> Function:
-        sym = self.sym
-        free = states & ~automatic  # only here may controlled, effect, maintenance steps go
-        result = sym.false
-        for t in usable:
-            source = states if t.kind is TransitionKind.AUTOMATIC else free
-            if source == sym.false:
-                continue
-            result |= sym.image(t, source)
+
+def image(
+    sym: SymbolicModel,
+    problem: Problem,
+    states: Function,
+    transitions: Sequence[SymbolicTransition],
+) -> Function:
+    """Every successor of `states` by one of `transitions` (automatic ones first and alone)."""
+    result = sym.false
+    if states == sym.false:
         return result
+    free = states & ~problem.automatic  # only here may controlled, effect, maintenance go
+    for t in transitions:
+        source = states if t.kind is TransitionKind.AUTOMATIC else free
+        if source == sym.false:
+            continue
+        result |= sym.image(t, source)
+    return result
 
-    def _walk_back(
-        self,
-        layers: list[Function],
-        hit: Function,
-        usable: list[SymbolicTransition],
-        automatic: Function,
-        always: Function,
-    ) -> tuple[tuple[str, ...], tuple[State, ...]]:
-        """One concrete plan: from a goal state, a predecessor in each earlier layer."""
-        sym = self.sym
-        state = sym.pick(hit)
-        states = [state]
-        names: list[str] = []
-        for layer in reversed(layers[:-1]):
-            target = sym.state(state)
-            candidates = layer & always
-            for t in usable:
-                source = (
-                    candidates if t.kind is TransitionKind.AUTOMATIC else candidates & ~automatic
-                )
-                before = sym.preimage(t, target) & source
-                if before != sym.false:
-                    state = sym.pick(before)
-                    states.append(state)
-                    names.append(t.name)
-                    break
-            else:  # pragma: no cover - the layers guarantee a predecessor
-                raise AssertionError("no predecessor in the previous layer")
-        return tuple(reversed(names)), tuple(reversed(states))
+
+def _predecessors(
+    sym: SymbolicModel,
+    problem: Problem,
+    layer: Function,
+    targets: Function,
+    transitions: Sequence[SymbolicTransition],
+) -> Function:
+    candidates = layer & problem.always
+    free = candidates & ~problem.automatic
+    before = sym.false
+    if targets == sym.false:
+        return before
+    for t in transitions:
+        source = candidates if t.kind is TransitionKind.AUTOMATIC else free
+        if source != sym.false:
+            before |= sym.preimage(t, targets) & source
+    return before
+
+
+def _walk(
+    sym: SymbolicModel, problem: Problem, layers: Sequence[Layer], count: int, hit: Function
+) -> tuple[str, ...]:
+    """One minimal plan, the same whatever the BDD variable order.
+
+    Backwards, the states of each layer that reach the goal in the remaining steps; then
+    forwards from the start, at each step the first transition that stays among them,
+    preferring one that reads what the step before wrote (finish what was started: after
+    "r1 moves to scan", "r1 arrives"), then the model's order.  So among equally short
+    plans a station does first what its model lists first, and keeps a resource's chain of
+    steps together.
+    """
+    budget = problem.budget
+    plain = tuple(t for t in problem.transitions if t.name not in problem.counted)
+    counted = tuple(t for t in problem.transitions if t.name in problem.counted)
+    target: Layer = [sym.false] * (budget + 1)
+    target[count] = hit
+    onward = [_closed(problem, target)]
+    for layer in reversed(layers[:-1]):
+        after = onward[-1]
+        before: Layer = []
+        for j in range(budget + 1):
+            states = _predecessors(sym, problem, layer[j], after[j], plain)
+            if j < budget:
+                states |= _predecessors(sym, problem, layer[j], after[j + 1], counted)
+            before.append(states)
+        onward.append(_closed(problem, before))
+    onward.reverse()
+    state = problem.start
+    used = 0
+    names: list[str] = []
+    written: frozenset[str] = frozenset()
+    for goal in onward[1:]:
+        automatic = state & problem.automatic != sym.false
+        following = [t for t in problem.transitions if _reads(t) & written]
+        for t in following + [t for t in problem.transitions if not _reads(t) & written]:
+            if automatic and t.kind is not TransitionKind.AUTOMATIC:
+                continue
+            step = used + (t.name in problem.counted)
+            if step > budget:
+                continue
+            after_state = sym.image(t, state)
+            if after_state != sym.false and after_state & goal[step] != sym.false:
+                names.append(t.name)
+                state, used, written = after_state, step, t.transition.written
+                break
+        else:  # pragma: no cover - the backward sets guarantee a successor
+            raise AssertionError("no step stays on a minimal plan")
+    return tuple(names)
+
+
+def _closed(problem: Problem, layer: Layer) -> Layer:
+    """With symmetries, every state of the orbits a layer meets: the layers hold one state
+    per orbit, the real plan may pass through any of them."""
+    if not problem.symmetries:
+        return layer
+    return [orbit(problem.symmetries, states) for states in layer]
+
+
+def _reads(t: SymbolicTransition) -> frozenset[str]:
+    return reads(t.transition)
+
+
+def reachable(
+    sym: SymbolicModel,
+    start: Function,
+    transitions: Sequence[SymbolicTransition],
+    automatic: Function,
+    allowed: Function,
+) -> Function:
+    """Every allowed state reachable from `start`.
+
+    Chained (each transition's image joins the set at once) rather than layered: the
+    fixpoint is the same, reached in far fewer and cheaper iterations, because no exact
+    distance layers are kept.
+    """
+    reached = start & allowed
+    while True:
+        before = reached
+        for t in transitions:
+            source = reached if t.kind is TransitionKind.AUTOMATIC else reached & ~automatic
+            reached |= sym.image(t, source) & allowed
+        if reached == before:
+            return reached

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 from planner.expressions import (
@@ -179,6 +179,8 @@ class SymbolicModel:
             self._transition(t) for t in model.transitions
         )
         self.by_name = {t.name: t for t in self.transitions}
+        self._restricted: dict[tuple[str, frozenset[str]], SymbolicTransition] = {}
+        self._bit_owner = {bit: name for name, bits in self.bits.items() for bit in bits}
 
     def sift(self) -> None:
         """Reorder the BDD variables once by sifting (deterministic: called at fixed points)."""
@@ -295,6 +297,19 @@ class SymbolicModel:
                     relation &= self.bdd.apply("<=>", self.bdd.var(a + "p"), self.bdd.var(b))
         return SymbolicTransition(t, guard, written_bits, None, relation, primes, substitution)
 
+    def restricted(self, t: SymbolicTransition, targets: frozenset[str]) -> SymbolicTransition:
+        """`t` with only its actions on `targets` (the others' variables are dropped from a
+        search, see `planner.relevance`); `t` itself when it writes nothing else."""
+        if t.transition.written <= targets:
+            return t
+        key = (t.name, targets & t.transition.written)
+        cached = self._restricted.get(key)
+        if cached is None:
+            actions = tuple(a for a in t.transition.actions if a.target in targets)
+            cached = self._transition(replace(t.transition, actions=actions))
+            self._restricted[key] = cached
+        return cached
+
     def _post(self, action: Assign) -> Function:
         if action.source is None:
             assert action.value is not None
@@ -343,6 +358,18 @@ class SymbolicModel:
         if assignment is None:
             raise ValueError("pick from an empty set of states")
         return self.decode(assignment)
+
+    def cube(self, values: Mapping[str, Value]) -> Function:
+        """The states where each given variable has its given value (the rest free)."""
+        assignment: dict[str, bool] = {}
+        for name, value in values.items():
+            assignment.update(self.code(name, value))
+        return self.bdd.cube(assignment)
+
+    def variables_of(self, states: Function) -> frozenset[str]:
+        """The model variables whose bits the set depends on."""
+        owner = self._bit_owner
+        return frozenset(owner[bit] for bit in self.bdd.support(states) if bit in owner)
 
     def decode(self, assignment: Mapping[str, bool]) -> State:
         values: list[Value] = []

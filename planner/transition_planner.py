@@ -11,13 +11,14 @@ from collections.abc import Callable
 from functools import cached_property
 from typing import TYPE_CHECKING
 
-from planner.expressions import variables_of
+from planner import search
+from planner.expressions import TRUE, variables_of
 from planner.loading import Diagnostic, ModelError
 from planner.model import Model, SourceLocation
 from planner.planning import PlanQuery, PlanResult, PlanStatus, State
-from planner.search import SymbolicSearch
 from planner.semantics import compile_expr
 from planner.symbolic import Function, SymbolicModel
+from planner.symbolic_planner import SymbolicPlanner
 from planner.synthesis import (
     SupervisorGuard,
     automatic_cycle,
@@ -92,9 +93,19 @@ class TransitionPlanner:
             self.sym.sift()  # the specifications and guards now in the manager shape the order
         else:
             self.bad = restore(self.sym)
-        self._search = SymbolicSearch(self.sym, self.bad)
+        self._search = SymbolicPlanner(self.sym, self.bad)
         self._queries = 0
         self.sym.bdd.configure(garbage_collection=False)
+
+    @property
+    def tuned(self) -> bool:
+        """Whether the variable order was sifted for search (see `SymbolicPlanner.tune`);
+        the supervisor cache saves such an order, so later runs start with it."""
+        return self._search.tuned
+
+    @tuned.setter
+    def tuned(self, value: bool) -> None:
+        self._search.tuned = value
 
     def order(self) -> list[str]:
         """The current BDD variable order, for saving with the bad states."""
@@ -133,7 +144,11 @@ class TransitionPlanner:
 
     def reachable(self, start: State, *, maintenance: bool = False) -> Function:
         """The good states plans can reach from `start` (for sizes and benchmarks)."""
-        return self._search.reachable(start, maintenance=maintenance)
+        usable = self._search.usable(PlanQuery(start, TRUE, maintenance=maintenance))
+        automatic = self._search.automatic(usable)
+        return search.reachable(
+            self.sym, self.sym.state(start), usable, automatic, self._search.good
+        )
 
     def violated(self, query: PlanQuery) -> list[str]:
         """Why a start state is bad: the specifications it is bad for, then forbidden[i]."""

@@ -404,11 +404,13 @@ def test_e6_raises_r2_and_error_alarms_and_only_r2_stays(demo: tuple[Station, Pl
 def test_e6_with_r2_back_and_an_attentive_operator_ends_with_every_alarm_normal(
     demo: tuple[Station, Planners],
 ) -> None:
-    back = ScheduledFault(Fault("reconnect", resource="r2"), at=20.0)
-    book, changes, _ = play_with_alarms(
+    back = ScheduledFault(Fault("reconnect", resource="r2"), at=33.0)  # after the maintenance
+    book, changes, events = play_with_alarms(
         demo, "e6_r2_disconnects_above_engine", (back,), acknowledge=True
     )
-    assert [c.at for c in changes if c.key == "resource:r2"] == [6.4, 6.4, 20.0]
+    (lost,) = [t for t, kind, subject in events if kind == "unavailable" and subject == "r2"]
+    assert lost < 33.0
+    assert [c.at for c in changes if c.key == "resource:r2"] == [lost, lost, 33.0]
     assert book.active_count() == 0 and book.unacknowledged_count() == 0
     assert book.alarms() == [] and len(book.alarms(include_normal=True)) == 4
 

@@ -6,9 +6,17 @@ import hashlib
 import json
 from pathlib import Path
 
+import pytest
+import yaml
+
 from app import supervisor_cache
+from bench import family
+from planner import search
+from planner.expressions import parse_expr
+from planner.loading import scope_for
 from planner.planning import PlanQuery
 from planner.station import load_station
+from planner.transition_planner import TransitionPlanner
 
 MINI = Path(__file__).parent / "models" / "mini_station.yaml"
 
@@ -54,3 +62,39 @@ def test_the_key_depends_on_the_text() -> None:
     text = MINI.read_text()
     assert supervisor_cache.key(text) == supervisor_cache.key(text)
     assert supervisor_cache.key(text) != supervisor_cache.key(text + "\n# changed\n")
+
+
+def test_an_order_tuned_by_search_is_saved_and_plans_exactly_like_a_fresh_planner(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A large search sifts the variable order once (`TUNE_NODES`); the cache then keeps
+    that order, and a planner restored with it gives the same plans, state by state, as a
+    planner that never reordered."""
+    text = yaml.safe_dump(family.station(3, 2), sort_keys=False)
+    model = load_station(text, "family.yaml").model
+    scope = scope_for(model.domains)
+    start = tuple(model.initial_values().values())
+    queries = [
+        PlanQuery(start, parse_expr(family.goal(3), scope)),
+        PlanQuery(start, parse_expr("r2.pos == bp2 && bp1.state == tightened", scope)),
+    ]
+    monkeypatch.setattr(search, "TUNE_NODES", 10**9)
+    never = TransitionPlanner(model)
+    expected = [never.plan(q) for q in queries]
+    assert all(r.found for r in expected)
+
+    monkeypatch.setattr(search, "TUNE_NODES", 0)  # tune in the first search
+    first = supervisor_cache.planner(model, text, "bdd", tmp_path)
+    synthesis_order = first.order()
+    assert [first.plan(q) for q in queries] == expected
+    assert first.tuned and first.order() != synthesis_order
+    supervisor_cache.remember_order(first, text, tmp_path)
+    (saved,) = tmp_path.glob("*.json")
+    entry = json.loads(saved.read_text())
+    assert entry["tuned"] and entry["order"] == first.order()
+
+    restored = supervisor_cache.planner(model, text, "bdd", tmp_path)
+    assert restored.tuned and restored.order() == entry["order"]
+    results = [restored.plan(q) for q in queries]
+    assert results == expected
+    assert [r.states for r in results] == [r.states for r in expected]

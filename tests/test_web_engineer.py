@@ -146,7 +146,7 @@ def test_controls_act_through_the_runner_and_are_audited(station: RunningStation
     assert 'data-plan="operations"' in plans
     assert 'data-plan="transitions"' in plans
     steps = re.findall(r'<g class="plan-node[^"]*" data-step="([^"]+)" data-status="(\w+)"', plans)
-    assert ("place_bp4", "started") in steps or any(s == "done" for _, s in steps)
+    assert any(status in ("started", "done") for _, status in steps)  # the first is under way
     assert {"tighten_bp1", "tighten_bp4"} <= {name for name, _ in steps}
     assert 'class="plan-edge' in plans  # the partial order's arrows
 

@@ -1,0 +1,461 @@
+"""The `bdd` engine: a query planned part by part, each part a breadth-first search.
+
+`planner.relevance` says which variables a query can matter to and which parts of the
+station are independent for it; this module turns each active part into a `search.Problem`
+over its own variables, orders the parts' minimal plans so that their concatenation is a
+minimal plan of the whole (or plans the parts jointly when no such order exists), and
+replays the plan on full states, checking every step against the concrete semantics.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, replace
+
+from planner.expressions import Expr, Value, conjunction, conjuncts, variables_of
+from planner.model import TransitionKind
+from planner.planning import PlanQuery, PlanResult, PlanStatus, State
+from planner.relevance import Component, Structure, allowed_conjuncts, cone_of_influence
+from planner.search import Outcome, Problem, Tuner, search
+from planner.semantics import Predicate, Semantics, compile_expr
+from planner.symbolic import Function, SymbolicModel, SymbolicTransition
+from planner.symmetry import Swapper, Symmetry, find_symmetries, neighbours
+
+# CUDD counts minterms in doubles, which overflow beyond 2^1024
+COUNTABLE_BITS = 1000
+
+
+@dataclass(frozen=True)
+class _Sets:
+    """A query's sets over every bit, before it is split into parts."""
+
+    usable: tuple[SymbolicTransition, ...]
+    allowed: Function
+    goal: Function
+    always: Function
+    goal_parts: tuple[Expr, ...]  # conjuncts of the goal, each within one component
+    joint: bool  # plan every active component together (forbidden-state recovery)
+
+
+@dataclass(frozen=True)
+class _Part:
+    variables: frozenset[str]  # the component
+    plan: tuple[str, ...]
+    outcome: Outcome
+    searched: tuple[str, ...] = ()  # the variables the search kept (cone of influence)
+
+
+class SymbolicPlanner:
+    """Plans `PlanQuery`s on the BDDs of a model whose bad states are known."""
+
+    name = "bdd"
+
+    def __init__(self, sym: SymbolicModel, bad: Function) -> None:
+        self.sym = sym
+        self.bad = bad
+        self.tuned = False
+        self.model = sym.model
+        self.structure = Structure(sym.model)
+        self.semantics = Semantics(sym.model)
+        self.good = ~bad & sym.valid
+        self._usable: dict[tuple[frozenset[str], bool], tuple[SymbolicTransition, ...]] = {}
+        self._automatic: dict[frozenset[str], Function] = {}
+        self._predicates: dict[Expr, Predicate] = {}
+        self.use_symmetries = False  # measured slower on the demo so far; see bench/planning.py
+        self._symmetries: tuple[Symmetry, ...] | None = None
+        self._swapper_cache: dict[tuple[str, frozenset[str]], Swapper] = {}
+
+    def tune(self) -> None:
+        """Sift once with a large search's layers alive: the order synthesis leaves is made
+        for the specifications, not for the sets a search builds."""
+        if not self.tuned:
+            self.sym.sift()
+            self.tuned = True
+
+    def _tuner(self) -> Tuner | None:
+        return None if self.tuned else self.tune
+
+    # -- the query's sets ------------------------------------------------------------------------
+
+    def usable(self, query: PlanQuery) -> tuple[SymbolicTransition, ...]:
+        key = (query.disabled, query.maintenance)
+        found = self._usable.get(key)
+        if found is None:
+            found = tuple(
+                t
+                for t in self.sym.transitions
+                if t.name not in query.disabled
+                and (query.maintenance or t.kind is not TransitionKind.MAINTENANCE)
+            )
+            self._usable[key] = found
+        return found
+
+    def automatic(self, transitions: Sequence[SymbolicTransition]) -> Function:
+        """States where one of these transitions that is automatic is enabled."""
+        names = frozenset(t.name for t in transitions if t.kind is TransitionKind.AUTOMATIC)
+        found = self._automatic.get(names)
+        if found is None:
+            found = self.sym.false
+            for t in transitions:
+                if t.kind is TransitionKind.AUTOMATIC:
+                    found |= t.guard
+            if len(self._automatic) > 256:
+                self._automatic.clear()
+            self._automatic[names] = found
+        return found
+
+    def _sets(self, query: PlanQuery) -> _Sets:
+        sym = self.sym
+        goal = sym.expr(query.goal)
+        if query.relaxed:
+            allowed = sym.valid
+            for spec in self.model.specifications:
+                if spec.name not in query.relaxed:
+                    allowed &= sym.expr(spec.invariant)
+            goal &= self.good
+        else:
+            allowed = self.good
+        for predicate in query.forbidden:
+            allowed &= ~sym.expr(predicate)
+        always = sym.expr(query.always) if query.always is not None else sym.true
+        return _Sets(
+            self.usable(query),
+            allowed,
+            goal,
+            always,
+            conjuncts(query.goal),
+            bool(query.relaxed),
+        )
+
+    def holds(self, expr: Expr, state: State) -> bool:
+        predicate = self._predicates.get(expr)
+        if predicate is None:
+            predicate = compile_expr(expr, self.model.variable_index)
+            if len(self._predicates) > 4096:
+                self._predicates.clear()
+            self._predicates[expr] = predicate
+        return predicate(state)
+
+    # -- planning ------------------------------------------------------------------------------
+
+    def plan(self, query: PlanQuery) -> PlanResult:
+        sym = self.sym
+        sets = self._sets(query)
+        start = sym.state(query.start)
+        if start & sets.allowed == sym.false:
+            return PlanResult(PlanStatus.BAD_START, max_steps=query.max_steps, engine=self.name)
+        if start & sets.goal != sym.false:
+            return self._result(query, (), [], {"layers": 1})
+        if start & sets.always == sym.false:
+            return self._unreachable(query, {"layers": 1})
+        predicates = list(sets.goal_parts)
+        if query.always is not None:
+            predicates.extend(conjuncts(query.always))
+        for forbidden in query.forbidden:
+            predicates.extend(allowed_conjuncts(forbidden))
+        usable_names = frozenset(t.name for t in sets.usable)
+        components = self.structure.components(usable_names, predicates)
+        active = [c for c in components if self._active(c, query, sets)]
+        parts, found = self._plan_parts(query, sets, active)
+        plan = tuple(name for part in parts for name in part.plan)
+        if not found or len(plan) > query.max_steps:
+            return self._unreachable(query, self._statistics(parts))
+        return self._result(query, plan, parts, self._statistics(parts))
+
+    def _active(self, component: Component, query: PlanQuery, sets: _Sets) -> bool:
+        """Whether the component must move: its part of the goal does not hold at the start,
+        or one of its automatic transitions is enabled there (or, in forbidden-state
+        recovery, its part of the start is bad)."""
+        names = frozenset(component.variables)
+        start = query.start
+        for part in sets.goal_parts:
+            if variables_of(part) <= names and not self.holds(part, start):
+                return True
+        for t in sets.usable:
+            if (
+                t.kind is TransitionKind.AUTOMATIC
+                and t.transition.written & names
+                and self.semantics.by_name[t.name].guard(start)
+            ):
+                return True
+        if sets.joint:
+            return self._bad_at_start(component, start)
+        return False
+
+    def _bad_at_start(self, component: Component, start: State) -> bool:
+        """Whether the component's own part of the start is bad: then the bad set, with
+        this part fixed at its start values, holds for every valid rest of the state."""
+        sym = self.sym
+        index = self.model.variable_index
+        values = {name: start[index[name]] for name in component.variables}
+        assignment = _assignment(sym, values)
+        rest = sym.bdd.let(assignment, self.bad)
+        valid_rest = sym.bdd.let(assignment, sym.valid)
+        return bool(valid_rest & ~rest == sym.false)
+
+    def _plan_parts(
+        self, query: PlanQuery, sets: _Sets, active: list[Component]
+    ) -> tuple[list[_Part], bool]:
+        """The active components' plans in an order whose concatenation is minimal, or the
+        joint plan of all of them; and whether every part found one."""
+        everything = frozenset(v for c in active for v in c.variables)
+        if sets.joint or len(active) == 1:
+            part = self._search(query, sets, everything, sets.goal)
+            return [part], part.outcome.found
+        parts: list[_Part] = []
+        for component in active:
+            variables = frozenset(component.variables)
+            part = self._search(query, sets, variables, self._goal_within(sets, variables))
+            parts.append(part)
+            if not part.outcome.found:  # the product cannot do better than a part
+                return parts, False
+        ordered = self._order(query, sets, parts)
+        if ordered is not None:
+            return ordered, True
+        joint = self._search(query, sets, everything, sets.goal)
+        return [joint], joint.outcome.found
+
+    def _goal_within(self, sets: _Sets, variables: frozenset[str]) -> Function:
+        return self.sym.expr(
+            conjunction([p for p in sets.goal_parts if variables_of(p) <= variables])
+        )
+
+    def _order(self, query: PlanQuery, sets: _Sets, parts: list[_Part]) -> list[_Part] | None:
+        """The parts in an order whose concatenation is minimal: the one whose automatic
+        transitions are enabled at the start goes first, each but the last ends where none
+        of its automatics is enabled and `always` holds (re-planned to such an end when
+        that costs no step), or None when no such order exists."""
+        start = query.start
+        first = [p.variables for p in parts if self._automatic_enabled(p.variables, sets, start)]
+        if len(first) > 1:
+            return None
+        settled: list[_Part] = []
+        unsettled: list[_Part] = []
+        for part in parts:
+            end = self._replay(start, part.plan)[-1]
+            if self._rests(part.variables, query, sets, end):
+                settled.append(part)
+                continue
+            within = self._within(sets, part.variables)
+            goal = self._goal_within(sets, part.variables)
+            calm = goal & ~self.automatic(within) & sets.always
+            again = self._search(query, sets, part.variables, calm)
+            if again.outcome.found and len(again.plan) == len(part.plan):
+                settled.append(again)
+            else:
+                unsettled.append(part)
+        if len(unsettled) > 1 or (first and unsettled and unsettled[0].variables == first[0]):
+            return None
+        head = [p for p in settled if first and p.variables == first[0]]
+        middle = [p for p in settled if not (first and p.variables == first[0])]
+        return head + middle + unsettled
+
+    def _rests(self, variables: frozenset[str], query: PlanQuery, sets: _Sets, end: State) -> bool:
+        if self._automatic_enabled(variables, sets, end):
+            return False
+        if query.always is None:
+            return True
+        return all(
+            self.holds(part, end)
+            for part in conjuncts(query.always)
+            if variables_of(part) <= variables
+        )
+
+    def _automatic_enabled(self, variables: frozenset[str], sets: _Sets, state: State) -> bool:
+        return any(
+            self.semantics.by_name[t.name].guard(state)
+            for t in self._within(sets, variables)
+            if t.kind is TransitionKind.AUTOMATIC
+        )
+
+    def _within(self, sets: _Sets, variables: frozenset[str]) -> list[SymbolicTransition]:
+        """The usable transitions of a part (a transition that writes nothing is a self-loop,
+        in no part)."""
+        return [t for t in sets.usable if t.transition.written & variables]
+
+    def _search(
+        self, query: PlanQuery, sets: _Sets, variables: frozenset[str], goal: Function
+    ) -> _Part:
+        problem = self.problem(query, sets, variables, goal)
+        if not (query.maintenance and query.fewest_maintenance):
+            outcome = search(self.sym, problem, self._tuner())
+            return _Part(variables, outcome.plan, outcome, problem.variables)
+        counted = frozenset(
+            t.name for t in problem.transitions if t.kind is TransitionKind.MAINTENANCE
+        )
+        layers = 0
+        for budget in range(query.max_steps + 1):
+            outcome = search(
+                self.sym, replace(problem, counted=counted, budget=budget), self._tuner()
+            )
+            layers += outcome.layers
+            if outcome.found or outcome.exhausted:
+                break
+        return _Part(variables, outcome.plan, replace(outcome, layers=layers), problem.variables)
+
+    def problem(
+        self, query: PlanQuery, sets: _Sets, variables: frozenset[str], goal: Function
+    ) -> Problem:
+        """The search for one part: every other variable fixed at its start value, and
+        within the part only the cone of influence of what the search reads."""
+        sym = self.sym
+        index = self.model.variable_index
+        outside = {
+            v.name: query.start[index[v.name]]
+            for v in self.model.variables
+            if v.name not in variables
+        }
+        assignment = _assignment(sym, outside)
+        fix: Callable[[Function], Function] = (
+            (lambda f: sym.bdd.let(assignment, f)) if assignment else (lambda f: f)
+        )
+        transitions = self._within(sets, variables)
+        allowed, always = fix(sets.allowed), fix(sets.always)
+        goal = fix(goal)
+        automatic = self.automatic(transitions)
+        seeds: set[str] = set()
+        for f in (allowed, always, goal, automatic):
+            seeds |= sym.variables_of(f)
+        keep = cone_of_influence(seeds, [t.transition for t in transitions], variables)
+        kept = tuple(sym.restricted(t, keep) for t in transitions if t.transition.written & keep)
+        ordered = tuple(v.name for v in self.model.variables if v.name in keep)
+        start = sym.cube({name: query.start[index[name]] for name in ordered})
+        swappers = self._swappers(query, sets, variables, keep, goal)
+        return Problem(
+            start,
+            goal,
+            allowed,
+            always,
+            automatic,
+            kept,
+            ordered,
+            query.max_steps,
+            symmetries=swappers,
+        )
+
+    # -- symmetry ------------------------------------------------------------------------------
+
+    @property
+    def symmetries(self) -> tuple[Symmetry, ...]:
+        if self._symmetries is None:
+            self._symmetries = find_symmetries(self.sym)
+        return self._symmetries
+
+    def _swappers(
+        self,
+        query: PlanQuery,
+        sets: _Sets,
+        variables: frozenset[str],
+        keep: frozenset[str],
+        goal: Function,
+    ) -> tuple[Swapper, ...]:
+        """The model's symmetries that this query and part keep (see `planner.symmetry`):
+        every usable transition has a usable image, the swap moves nothing outside the
+        part, and the goal, `always`, the forbidden predicates and the dropped
+        specifications are unchanged by it."""
+        if not self.use_symmetries or not self.symmetries:
+            return ()
+        sym = self.sym
+        usable = frozenset(t.name for t in sets.usable)
+        valid: list[Symmetry] = []
+        for symmetry in self.symmetries:
+            if symmetry.broken & usable or not symmetry.moved <= variables:
+                continue
+            if any(symmetry.transitions.get(n, n) not in usable for n in usable):
+                continue
+            if any((v in keep) != (symmetry.variable(v) in keep) for v in symmetry.moved):
+                continue
+            if query.relaxed and (
+                symmetry.specifications is None
+                or any(symmetry.specifications[r] not in query.relaxed for r in query.relaxed)
+            ):
+                continue
+            predicates = [*query.forbidden] + ([query.always] if query.always is not None else [])
+            if any(sym.expr(symmetry.expr(p)) != sym.expr(p) for p in predicates):
+                continue
+            if self._swapper(symmetry, keep).image(goal) != goal:
+                continue
+            valid.append(symmetry)
+        return tuple(self._swapper(s, keep) for s in neighbours(valid))
+
+    def _swapper(self, symmetry: Symmetry, keep: frozenset[str]) -> Swapper:
+        key = (symmetry.name, keep)
+        swapper = self._swapper_cache.get(key)
+        if swapper is None:
+            swapper = Swapper(self.sym, symmetry, keep)
+            if len(self._swapper_cache) > 512:
+                self._swapper_cache.clear()
+            self._swapper_cache[key] = swapper
+        return swapper
+
+    # -- results -------------------------------------------------------------------------------
+
+    def _statistics(self, parts: Sequence[_Part]) -> dict[str, float]:
+        out: dict[str, float] = {
+            "layers": sum(p.outcome.layers for p in parts),
+            "parts": len(parts),
+        }
+        searched = 0
+        reached = 0
+        countable = True
+        for part in parts:
+            bits = sum(len(self.sym.bits[v]) for v in part.searched)
+            searched += bits
+            if bits > COUNTABLE_BITS or part.outcome.reached is None:
+                countable = False
+                continue
+            reached += int(self.sym.bdd.count(part.outcome.reached, nvars=bits))
+        if countable:
+            out["reached"] = reached
+        out["searched_bits"] = searched
+        return out
+
+    def _unreachable(self, query: PlanQuery, statistics: dict[str, float]) -> PlanResult:
+        return PlanResult(
+            PlanStatus.UNREACHABLE,
+            max_steps=query.max_steps,
+            engine=self.name,
+            statistics=statistics,
+        )
+
+    def _result(
+        self,
+        query: PlanQuery,
+        plan: tuple[str, ...],
+        parts: Sequence[_Part],
+        statistics: dict[str, float],
+    ) -> PlanResult:
+        states = self._replay(query.start, plan, check=query)
+        return PlanResult(
+            PlanStatus.FOUND,
+            plan,
+            states,
+            max_steps=query.max_steps,
+            engine=self.name,
+            statistics=statistics,
+        )
+
+    def _replay(
+        self, start: State, plan: Sequence[str], check: PlanQuery | None = None
+    ) -> tuple[State, ...]:
+        """The full states a plan visits; with `check`, every step is verified against the
+        concrete semantics (a reduction that broke a plan fails loudly here)."""
+        states = [start]
+        state = start
+        for name in plan:
+            if check is not None:
+                problem = self.semantics.step_allowed(
+                    state, name, maintenance=check.maintenance, disabled=check.disabled
+                )
+                if problem is not None:
+                    raise AssertionError(f"planned step {name} is not possible: {problem}")
+            state = self.semantics.by_name[name].apply(state)
+            states.append(state)
+        return tuple(states)
+
+
+def _assignment(sym: SymbolicModel, values: Mapping[str, Value]) -> dict[str, bool]:
+    assignment: dict[str, bool] = {}
+    for name, value in values.items():
+        assignment.update(sym.code(name, value))
+    return assignment
