@@ -80,12 +80,14 @@ class PddlTask:
 def write_pddl(problem: Any, directory: Path) -> PddlTask:
     """Write a Unified Planning problem (see `bench.pddl_export.to_up_problem`) as PDDL."""
     from unified_planning.io import PDDLWriter
+    from unified_planning.model import Action
 
     writer = PDDLWriter(problem)
     domain, task = directory / "domain.pddl", directory / "problem.pddl"
     writer.write_domain(str(domain))
     writer.write_problem(str(task))
-    names = {writer.get_pddl_name(a): a.name for a in problem.actions}
+    # the actions the writer named: it leaves out those whose precondition is statically false
+    names = {n: i.name for n, i in writer.nto_renamings.items() if isinstance(i, Action)}
     (directory / "names.json").write_text(json.dumps(names))
     return PddlTask(domain, task, names)
 

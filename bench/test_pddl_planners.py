@@ -67,9 +67,28 @@ def test_export_runs_in_a_child_process(tmp_path: Path) -> None:
     assert isinstance(task, pddl_planners.PddlTask), task
     assert task.domain.read_text().startswith("(define (domain")
     assert "nr.start" in task.names.values()  # PDDL name -> exported action name
-    assert pddl_planners.export(ROBOT_NR, "no_such_variable", tmp_path, 60).startswith(
-        "export failed: "
-    )
+    failed = pddl_planners.export(ROBOT_NR, "no_such_variable", tmp_path, 60)
+    assert isinstance(failed, str) and failed.startswith("export failed: ")
+
+
+@pytest.mark.parametrize("planner", PLANNERS)
+def test_actions_the_writer_leaves_out(
+    planner: pddl_planners.ExternalPlanner, tmp_path: Path
+) -> None:
+    """UP's writer leaves out an action whose precondition it simplifies to false (the demo
+    has 44), which the export's own simplification keeps: the names map must cover exactly
+    the written ones."""
+    model = {
+        "variables": [{"name": "v", "domain": ["a", "b"], "initial": "a"}],
+        "transitions": [
+            {"name": "never", "guard": "v == a && v != a", "actions": ["v := b"]},
+            {"name": "set_b", "guard": "v == a", "actions": ["v := b"]},
+        ],
+    }
+    task = pddl_planners.export(model, "v == b", tmp_path, 60)
+    assert isinstance(task, pddl_planners.PddlTask), task
+    assert list(task.names.values()) == ["set_b"]
+    assert pddl_planners.solve(planner, task, 60).plan == ["set_b"]
 
 
 def test_missing_planner_says_not_installed(tmp_path: Path) -> None:
