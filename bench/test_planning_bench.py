@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from bench import pddl_planners, planning, process
+from bench import pddl_planners, planning, planning_instances, process
 from bench.planning_table import HEADER, Row, Target, table
 
 
@@ -48,3 +48,21 @@ def test_benchmark_end_to_end_on_the_smallest_instance(tmp_path: Path) -> None:
             assert cells[column][0].isdigit() and "!" not in cells[column], cells[column]
         else:
             assert cells[column] == "not installed"
+
+
+def test_instances_are_the_issues_rows_with_its_targets(tmp_path: Path) -> None:
+    instances = planning_instances.all_instances(tmp_path)
+    keys = [i.key for i in instances]
+    assert len(set(keys)) == len(keys)
+    assert set(planning_instances.TARGETS) | set(planning_instances.QUICK) <= set(keys)
+    family = [i.name for i in instances if i.series.startswith("family")]
+    assert len(family) == 6 + 8 + 4 and "B=8 R=2" in family
+    goals = {i.key: i.goal for i in instances if i.series == "demo"}
+    assert goals == {
+        "demo-synthesis": None,
+        "demo-bp1": "bp1.state == tightened",
+        "demo-tighten": "tighten_bolts.goal",
+        "demo-assemble": "assemble_engine.goal",
+    }
+    for i in instances:  # the synthesis rows have no export, every plan row has one
+        assert (i.pddl is None) == i.synthesis, i.key
