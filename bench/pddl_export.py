@@ -474,6 +474,53 @@ def _steps(
     ]
 
 
+class Badness:
+    """Which states are bad: violating a specification or, with ``closure``, also those of
+    DESIGN.md section 8, from which a chain of uncontrollable steps (the enabled automatic
+    transitions where any is enabled, else the enabled effects) reaches a violation.
+
+    The export's ``enforce_specifications`` excludes only violating states, so Fast Downward
+    and SymK may plan through states that section 8 calls bad; ``closure`` finds those.
+    """
+
+    def __init__(self, m: FlatModel, closure: bool = False) -> None:
+        self.m, self.closure = m, closure
+        self.names = list(m.variables)
+        self.known: dict[tuple[Value, ...], bool] = {}
+
+    def __call__(self, state: Mapping[str, Value]) -> bool:
+        if not self.closure:
+            return self.m.is_bad(state)
+        start = tuple(state[n] for n in self.names)
+        if start in self.known:
+            return self.known[start]
+        seen, stack = {start}, [dict(state)]
+        while stack:
+            s = stack.pop()
+            key = tuple(s[n] for n in self.names)
+            if self.known.get(key) or self.m.is_bad(s):
+                self.known[start] = True
+                return True
+            if key != start and key in self.known:
+                continue  # known not bad, and so is everything it leads to
+            for t in _uncontrollable_steps(self.m, s):
+                n = _apply(t, s)
+                nkey = tuple(n[x] for x in self.names)
+                if nkey not in seen:
+                    seen.add(nkey)
+                    stack.append(n)
+        for key in seen:  # none of them leads to a violation
+            self.known[key] = False
+        return False
+
+
+def _uncontrollable_steps(m: FlatModel, s: Mapping[str, Value]) -> list[Transition]:
+    autos = [t for t in m.transitions.values() if t.kind == "automatic" and evaluate(t.guard, s)]
+    if autos:
+        return autos
+    return [t for t in m.transitions.values() if t.kind == "effect" and evaluate(t.guard, s)]
+
+
 def simulate(
     model: Mapping[str, Any] | FlatModel,
     start: Mapping[str, object] | None,
@@ -482,17 +529,20 @@ def simulate(
     supervisor_guards: Mapping[str, str] | None = None,
     maintenance: bool = False,
     check_specs: bool = True,
+    closure: bool = False,
 ) -> list[State]:
     """Replay ``plan`` (transition names) and return the visited states.
 
     Raises :class:`PlanError` if a step is not possible (guard, automatic priority, maintenance,
-    supervisor guard), a bad state is visited (``check_specs``) or the goal fails at the end.
+    supervisor guard), a bad state is visited (``check_specs``; with ``closure`` bad as in
+    section 8, see :class:`Badness`) or the goal fails at the end.
     """
     m = model if isinstance(model, FlatModel) else FlatModel.from_dict(model)
     sup = _supervisor_exprs(m, supervisor_guards)
+    is_bad = Badness(m, closure)
     s = m.state(start)
     states = [s]
-    if check_specs and m.is_bad(s):
+    if check_specs and is_bad(s):
         raise PlanError("start state is bad")
     for i, name in enumerate(plan):
         t = m.transitions.get(transition_of(name) or "")
@@ -502,7 +552,7 @@ def simulate(
             raise PlanError(f"step {i}: {t.name} is not possible in {s}")
         s = _apply(t, s)
         states.append(s)
-        if check_specs and m.is_bad(s):
+        if check_specs and is_bad(s):
             raise PlanError(f"step {i}: {t.name} leads to a bad state {s}")
     if goal is not None and not evaluate(m.parse(goal), s):
         raise PlanError(f"goal {goal!r} does not hold at the end: {s}")
@@ -517,10 +567,11 @@ def check_plan(
     supervisor_guards: Mapping[str, str] | None = None,
     maintenance: bool = False,
     expected_length: int | None = None,
+    closure: bool = False,
 ) -> None:
     """Raise :class:`PlanError` unless ``plan`` is valid (see :func:`simulate`), reaches ``goal``
     and, if given, has ``expected_length`` steps."""
-    simulate(model, start, plan, goal, supervisor_guards, maintenance)
+    simulate(model, start, plan, goal, supervisor_guards, maintenance, closure=closure)
     if expected_length is not None and len(plan) != expected_length:
         raise PlanError(f"plan has {len(plan)} steps, expected {expected_length}: {plan}")
 
@@ -532,18 +583,21 @@ def bfs_min_length(
     supervisor_guards: Mapping[str, str] | None = None,
     maintenance: bool = False,
     max_states: int = 1_000_000,
+    closure: bool = False,
 ) -> int | None:
     """Minimal plan length by explicit breadth-first search (an oracle for small models).
 
-    Bad states are never entered; ``supervisor_guards`` may additionally restrict steps.
-    Returns None if the goal is unreachable.
+    Bad states (with ``closure``: as in section 8, see :class:`Badness`) are never entered;
+    ``supervisor_guards`` may additionally restrict steps.  Returns None if the goal is
+    unreachable.
     """
     m = model if isinstance(model, FlatModel) else FlatModel.from_dict(model)
     sup = _supervisor_exprs(m, supervisor_guards)
+    is_bad = Badness(m, closure)
     g = m.parse(goal)
     names = list(m.variables)
     s0 = m.state(start)
-    if m.is_bad(s0):
+    if is_bad(s0):
         return None
     seen = {tuple(s0[n] for n in names)}
     queue = deque([(s0, 0)])
@@ -554,7 +608,7 @@ def bfs_min_length(
         for t in _steps(m, s, sup, maintenance):
             n = _apply(t, s)
             key = tuple(n[x] for x in names)
-            if key not in seen and not m.is_bad(n):
+            if key not in seen and not is_bad(n):
                 if len(seen) >= max_states:
                     raise RuntimeError(f"more than {max_states} states")
                 seen.add(key)

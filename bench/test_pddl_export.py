@@ -7,9 +7,15 @@ up-fast-downward), so the benchmark's comparison cannot rot unnoticed.
 from __future__ import annotations
 
 import itertools
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
 from typing import Any
 
 import pytest
+import yaml
 
 from bench.fd_runner import FDResult, solve_optimal, solve_satisficing
 from bench.pddl_export import (
@@ -90,6 +96,31 @@ ZONE: dict[str, Any] = {
 }
 ZONE_GOAL = "r1.pos == bp1 && r2.done"
 ZONE_GUARDS = {"r1.to_bp1": "r2.pos != bp1", "r2.to_bp1": "r1.pos != bp1"}
+
+# Section 8's bad states are more than the violating ones: after `r.goto_b` with the part
+# still in, the effect `r.arrive` would reach a violation, so that state is bad.  `mark` needs
+# exactly that window: with only the specifications as invariants the optimum is 2
+# (goto_b, mark); under section 8 it is 3 (grip first).
+WINDOW: dict[str, Any] = {
+    "variables": [
+        {"name": "r.pos", "domain": ["a", "b"], "initial": "a", "kind": "measured"},
+        {"name": "r.ref", "domain": ["a", "b"], "initial": "a", "kind": "command"},
+        {"name": "part", "domain": ["in", "held"], "initial": "in"},
+        {"name": "x", "domain": "bool", "initial": False},
+    ],
+    "transitions": [
+        {"name": "r.goto_b", "guard": "r.pos == r.ref && r.ref == a", "actions": ["r.ref := b"]},
+        {
+            "name": "r.arrive",
+            "kind": "effect",
+            "guard": "r.ref != r.pos",
+            "actions": ["r.pos := r.ref"],
+        },
+        {"name": "grip", "guard": "part == in && r.pos == a", "actions": ["part := held"]},
+        {"name": "mark", "guard": "r.ref == b && r.pos == a", "actions": ["x := true"]},
+    ],
+    "specifications": [{"name": "holding_at_b", "invariant": "r.pos == b -> part == held"}],
+}
 
 # x := y and y := x in one transition must both read the state before it (a swap).
 SWAP: dict[str, Any] = {
@@ -227,3 +258,52 @@ def test_expression_precedence() -> None:
             assert evaluate(expr, {"a": a, "b": b, "c": c}) == fn(a, b, c), text
     with pytest.raises(ModelError):
         model.parse("a && (b")
+
+
+def sp(*args: str) -> dict[str, Any]:
+    """The JSON answer of a whole `sp` process (the planner under test, DESIGN.md section 8)."""
+    command = shutil.which("sp") or str(Path(sys.executable).parent / "sp")
+    result = subprocess.run([command, *args, "--json"], capture_output=True, text=True, timeout=60)
+    answer: dict[str, Any] = json.loads(result.stdout)
+    return answer
+
+
+def test_closure_finds_the_states_section_8_calls_bad(tmp_path: Path) -> None:
+    assert bfs_min_length(WINDOW, None, "x") == 2
+    assert bfs_min_length(WINDOW, None, "x", closure=True) == 3
+    simulate(WINDOW, None, ["r.goto_b", "mark"], "x")
+    with pytest.raises(PlanError, match="bad state"):
+        simulate(WINDOW, None, ["r.goto_b", "mark"], "x", closure=True)
+    check_plan(WINDOW, None, "x", ["grip", "r.goto_b", "mark"], closure=True, expected_length=3)
+    # sp plans with section 8's semantics, and its supervisor guards close the gap for the export
+    path = tmp_path / "window.yaml"
+    path.write_text(yaml.safe_dump(WINDOW))
+    assert sp("plan", str(path), "--goal", "x", "--no-cache")["length"] == 3
+    checked = sp("check", str(path), "--no-cache")
+    guards = {g["transition"]: g["guard"] for g in checked["supervisor_guards"]}
+    assert bfs_min_length(WINDOW, None, "x", guards) == 3
+
+
+def test_closure_respects_automatic_priority() -> None:
+    """From a state with an enabled automatic transition only automatic steps are possible,
+    so an effect enabled there does not make it bad."""
+
+    def model(automatic_guard: str) -> dict[str, Any]:
+        return {
+            "variables": [{"name": n, "domain": "bool", "initial": False} for n in "avz"],
+            "transitions": [
+                {"name": "set_a", "guard": "!a", "actions": ["a := true"]},
+                {
+                    "name": "reset",
+                    "kind": "automatic",
+                    "guard": automatic_guard,
+                    "actions": ["a := false"],
+                },
+                {"name": "slip", "kind": "effect", "guard": "a", "actions": ["v := true"]},
+            ],
+            "specifications": [{"name": "never_v", "invariant": "!v"}],
+        }
+
+    assert bfs_min_length(model("a"), None, "a", closure=True) == 1  # reset comes first
+    assert bfs_min_length(model("a && z"), None, "a", closure=True) is None  # slip may come
+    assert bfs_min_length(model("a && z"), None, "a") == 1
