@@ -26,6 +26,19 @@ COUNTABLE_BITS = 1000
 
 
 @dataclass(frozen=True)
+class Reductions:
+    """The exact reductions the `bdd` engine applies; tests and benchmarks switch them off
+    one at a time to check and to measure each."""
+
+    parts: bool = True  # plan independent components apart, freeze the untouched ones
+    cone: bool = True  # drop variables nothing the search reads depends on
+    symmetry: bool = False  # keep one state per orbit of interchangeable objects
+
+
+ALL_REDUCTIONS = Reductions()
+
+
+@dataclass(frozen=True)
 class _Sets:
     """A query's sets over every bit, before it is split into parts."""
 
@@ -50,8 +63,11 @@ class SymbolicPlanner:
 
     name = "bdd"
 
-    def __init__(self, sym: SymbolicModel, bad: Function) -> None:
+    def __init__(
+        self, sym: SymbolicModel, bad: Function, reductions: Reductions = ALL_REDUCTIONS
+    ) -> None:
         self.sym = sym
+        self.reductions = reductions
         self.bad = bad
         self.tuned = False
         self.model = sym.model
@@ -61,7 +77,6 @@ class SymbolicPlanner:
         self._usable: dict[tuple[frozenset[str], bool], tuple[SymbolicTransition, ...]] = {}
         self._automatic: dict[frozenset[str], Function] = {}
         self._predicates: dict[Expr, Predicate] = {}
-        self.use_symmetries = False  # measured slower on the demo so far; see bench/planning.py
         self._symmetries: tuple[Symmetry, ...] | None = None
         self._swapper_cache: dict[tuple[str, frozenset[str]], Swapper] = {}
 
@@ -154,8 +169,11 @@ class SymbolicPlanner:
         for forbidden in query.forbidden:
             predicates.extend(allowed_conjuncts(forbidden))
         usable_names = frozenset(t.name for t in sets.usable)
-        components = self.structure.components(usable_names, predicates)
-        active = [c for c in components if self._active(c, query, sets)]
+        if self.reductions.parts:
+            components = self.structure.components(usable_names, predicates)
+            active = [c for c in components if self._active(c, query, sets)]
+        else:
+            active = [Component(tuple(v.name for v in self.model.variables))]
         parts, found = self._plan_parts(query, sets, active)
         plan = tuple(name for part in parts for name in part.plan)
         if not found or len(plan) > query.max_steps:
@@ -316,7 +334,11 @@ class SymbolicPlanner:
         seeds: set[str] = set()
         for f in (allowed, always, goal, automatic):
             seeds |= sym.variables_of(f)
-        keep = cone_of_influence(seeds, [t.transition for t in transitions], variables)
+        keep = (
+            cone_of_influence(seeds, [t.transition for t in transitions], variables)
+            if self.reductions.cone
+            else variables
+        )
         kept = tuple(sym.restricted(t, keep) for t in transitions if t.transition.written & keep)
         ordered = tuple(v.name for v in self.model.variables if v.name in keep)
         start = sym.cube({name: query.start[index[name]] for name in ordered})
@@ -353,7 +375,7 @@ class SymbolicPlanner:
         every usable transition has a usable image, the swap moves nothing outside the
         part, and the goal, `always`, the forbidden predicates and the dropped
         specifications are unchanged by it."""
-        if not self.use_symmetries or not self.symmetries:
+        if not self.reductions.symmetry or not self.symmetries:
             return ()
         sym = self.sym
         usable = frozenset(t.name for t in sets.usable)

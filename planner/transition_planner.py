@@ -18,7 +18,7 @@ from planner.model import Model, SourceLocation
 from planner.planning import PlanQuery, PlanResult, PlanStatus, State
 from planner.semantics import compile_expr
 from planner.symbolic import Function, SymbolicModel
-from planner.symbolic_planner import SymbolicPlanner
+from planner.symbolic_planner import ALL_REDUCTIONS, Reductions, SymbolicPlanner
 from planner.synthesis import (
     SupervisorGuard,
     automatic_cycle,
@@ -81,7 +81,13 @@ Restore = Callable[[SymbolicModel], Function]
 class TransitionPlanner:
     """Built once per model; `restore` skips synthesis with a saved supervisor (see `saved`)."""
 
-    def __init__(self, model: Model, engine: str = "bdd", restore: Restore | None = None) -> None:
+    def __init__(
+        self,
+        model: Model,
+        engine: str = "bdd",
+        restore: Restore | None = None,
+        reductions: Reductions = ALL_REDUCTIONS,
+    ) -> None:
         if engine not in ENGINES:
             raise ValueError(f"unknown engine '{engine}'; use one of {', '.join(ENGINES)}")
         self.model = model
@@ -93,7 +99,7 @@ class TransitionPlanner:
             self.sym.sift()  # the specifications and guards now in the manager shape the order
         else:
             self.bad = restore(self.sym)
-        self._search = SymbolicPlanner(self.sym, self.bad)
+        self._search = SymbolicPlanner(self.sym, self.bad, reductions)
         self._queries = 0
         self.sym.bdd.configure(garbage_collection=False)
 
