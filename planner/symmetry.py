@@ -218,7 +218,7 @@ def _specifications(
     return result
 
 
-COMPARED_VARIABLES = 4
+COMPARED_VARIABLES = 8
 
 
 def neighbours(symmetries: Iterable[Symmetry]) -> list[Symmetry]:
