@@ -17,14 +17,10 @@ from __future__ import annotations
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
+from planner.cover import Cover
 from planner.expressions import (
-    BoolVar,
     Equals,
     Expr,
-    Not,
-    Value,
-    conjunction,
-    disjunction,
     format_expr,
     negation,
     variables_of,
@@ -354,99 +350,52 @@ def supervisor_guards(sym: SymbolicModel, bad: Function) -> list[SupervisorGuard
 
     The guard is simplified under the states where the transition can actually be taken
     (its own guard holds, no automatic transition is enabled, the state is not bad), so it
-    says only what the specifications add.
+    says only what the specifications add.  There, whether the step leads into `bad`
+    depends only on the components the transition writes and the variables it copies from
+    (in the others the next state is the current, good one), so the guard is read over
+    those variables alone: fewer variables, a shorter expression, a faster cover.
     """
+    parts = [p for p in components(sym.model) if p.specifications]
+    component_of = {name: k for k, p in enumerate(parts) for name in p.variables}
     automatic = automatic_guard(sym)
+    good = ~automatic & ~bad & sym.valid
+    cover = Cover(sym)
     result: list[SupervisorGuard] = []
     for t in sym.transitions:
         if t.kind not in (TransitionKind.CONTROLLED, TransitionKind.MAINTENANCE):
             continue
-        care = t.guard & ~automatic & ~bad & sym.valid
+        care = t.guard & good
         forbidden = sym.preimage(t, bad) & care
         if forbidden == sym.false:
             continue
-        dont_care = ~care
-        # the shortest of: what is allowed, or "not" what is forbidden, each as an
-        # irredundant sum of products that may use the states where t cannot be taken
-        positive = cover_expr(sym, ~forbidden & care, ~forbidden | dont_care)
-        negative = negation(cover_expr(sym, forbidden, forbidden | dont_care))
-        guard = min(positive, negative, key=lambda e: len(format_expr(e)))
+        relevant: set[str] = set()
+        for action in t.transition.actions:
+            if action.target in component_of:
+                relevant.update(parts[component_of[action.target]].variables)
+                if action.source is not None:
+                    relevant.add(action.source)
+        hidden = [
+            b for v in sym.model.variables if v.name not in relevant for b in sym.bits[v.name]
+        ]
+        care_here = sym.bdd.exist(hidden, care) if hidden else care
+        forbidden_here = sym.bdd.exist(hidden, forbidden) if hidden else forbidden
+        guard = _readable(cover, care_here, forbidden_here)
         result.append(SupervisorGuard(t.name, guard, sym.count(forbidden)))
     return result
 
 
-# ---- readable predicates from BDDs -----------------------------------------------------------
+def _readable(cover: Cover, care: Function, forbidden: Function) -> Expr:
+    """The shorter of: what is allowed, or "not" what is forbidden, each an irredundant sum
+    of products that may use the states outside `care` (where the transition is not taken).
 
-
-def cover_expr(sym: SymbolicModel, lower: Function, upper: Function) -> Expr:
-    """A short expression true on all of `lower` and nowhere outside `upper`.
-
-    An irredundant sum of products between the two bounds (Minato-Morreale ISOP), whose
-    cubes over bits are read back as literals over the model's variables.
+    Both covers are grown together, their number of products limited, so that one that
+    needs many more products than the other (tens of seconds on the demo) is not finished.
     """
-    terms = [_cube_literals(sym, cube) for cube in isop(sym, lower, upper)]
-    if len(terms) < 2:
-        return disjunction([conjunction(t) for t in terms])
-    common = [lit for lit in terms[0] if all(lit in t for t in terms[1:])]
-    rest = [conjunction([lit for lit in t if lit not in common]) for t in terms]
-    return conjunction([*common, disjunction(rest)])
-
-
-def isop(sym: SymbolicModel, lower: Function, upper: Function) -> list[dict[str, bool]]:
-    """Irredundant cubes covering `lower` within `upper` (requires lower <= upper)."""
-    bdd = sym.bdd
-    memo: dict[tuple[Function, Function], tuple[list[dict[str, bool]], Function]] = {}
-
-    def level(u: Function) -> int:
-        return 1 << 30 if u in (sym.true, sym.false) else int(bdd.level_of_var(u.var))
-
-    def go(low: Function, up: Function) -> tuple[list[dict[str, bool]], Function]:
-        if low == sym.false:
-            return [], sym.false
-        if up == sym.true:
-            return [{}], sym.true
-        key = (low, up)
-        if key in memo:
-            return memo[key]
-        var = bdd.var_at_level(min(level(low), level(up)))
-        l0, l1 = bdd.let({var: False}, low), bdd.let({var: True}, low)
-        u0, u1 = bdd.let({var: False}, up), bdd.let({var: True}, up)
-        c0, f0 = go(l0 & ~u1, u0)
-        c1, f1 = go(l1 & ~u0, u1)
-        cd, fd = go((l0 & ~f0) | (l1 & ~f1), u0 & u1)
-        x = bdd.var(var)
-        cubes = [{**c, var: False} for c in c0] + [{**c, var: True} for c in c1] + cd
-        result = (cubes, (~x & f0) | (x & f1) | fd)
-        memo[key] = result
-        return result
-
-    return go(lower, upper)[0]
-
-
-def _cube_literals(sym: SymbolicModel, cube: dict[str, bool]) -> list[Expr]:
-    """A cube over bits as literals, one per variable it constrains."""
-    literals: list[Expr] = []
-    for variable in sym.model.variables:
-        bits = sym.bits[variable.name]
-        if not any(b in cube for b in bits):
-            continue
-        values = [
-            value
-            for value in variable.domain
-            if all(cube.get(b, bit) == bit for b, bit in sym.code(variable.name, value).items())
-        ]
-        if len(values) < len(variable.domain):
-            literals.append(_literal(variable.name, variable.domain, values))
-    return literals
-
-
-def _literal(name: str, domain: tuple[Value, ...], values: Sequence[Value]) -> Expr:
-    """`x == v`, `x != v`, `flag`, `!flag`, or a short disjunction, for a set of values."""
-    if domain == (False, True):
-        return BoolVar(name) if list(values) == [True] else Not(BoolVar(name))
-    if len(values) == 1:
-        return Equals(name, values[0])
-    others = [v for v in domain if v not in values]
-    if len(others) < len(values):
-        return conjunction([Not(Equals(name, v)) for v in others])
-    return disjunction([Equals(name, v) for v in values])
+    limit = 8
+    while True:
+        allowed = cover.expr(care & ~forbidden, ~forbidden, limit)
+        denied = cover.expr(forbidden, forbidden | ~care, limit)
+        found = [e for e in (allowed, None if denied is None else negation(denied)) if e]
+        if found:
+            return min(found, key=lambda e: len(format_expr(e)))
+        limit *= 4

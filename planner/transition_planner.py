@@ -103,7 +103,14 @@ class TransitionPlanner:
 
     @cached_property
     def guards(self) -> list[SupervisorGuard]:
-        return supervisor_guards(self.sym, self.bad)
+        """Computed when first asked for (`sp check` prints them; planning needs only `bad`),
+        with garbage collection on: the covers leave many dead nodes behind."""
+        bdd = self.sym.bdd
+        before = bdd.configure(garbage_collection=True)["garbage_collection"]
+        try:
+            return supervisor_guards(self.sym, self.bad)
+        finally:
+            bdd.configure(garbage_collection=before)
 
     @cached_property
     def _bmc(self) -> BoundedModelChecker:

@@ -421,11 +421,20 @@ def independent_models(draw: st.DrawFn) -> dict[str, Any]:
         # parts without a specification too: their automatics still take priority
         for _ in range(draw(st.integers(0 if k else 1, 2))):
             specs.append(draw(_specification(part_vars, len(specs))))
+    prefix = {v["name"]: v["name"].split(".")[0] for v in variables}
+    copies = [
+        f"{u['name']} := {w['name']}"
+        for u in variables
+        for w in variables
+        if _same_domain(u, w) and prefix[u["name"]] != prefix[w["name"]]
+    ]
     for i in range(draw(st.integers(0, 2))):
         guard = draw(random_expression(variables, 2))
-        transitions.append(
-            {"name": f"across.t{i}", "guard": guard, "actions": draw(_actions(variables))}
-        )
+        if copies and draw(st.booleans()):  # the next state's part depends on another part
+            actions = [draw(st.sampled_from(copies))]
+        else:
+            actions = draw(_actions(variables))
+        transitions.append({"name": f"across.t{i}", "guard": guard, "actions": actions})
     targets = {
         action.split(":=")[0].strip()
         for t in transitions

@@ -16,8 +16,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from bench import cells
+from planner.expressions import variables_of
 from planner.loading import ModelError, load_model
-from planner.model import Model
+from planner.model import Model, TransitionKind
+from planner.semantics import Semantics
 from planner.station import load_station
 from planner.symbolic import SymbolicModel
 from planner.synthesis import (
@@ -48,7 +50,7 @@ def _monolithic(sym: SymbolicModel) -> Any:
 
 
 @settings(
-    max_examples=200,
+    max_examples=150,
     deadline=None,
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
 )
@@ -75,6 +77,38 @@ def test_componentwise_bad_states_equal_the_oracle_and_the_whole_closure(
     states = sorted(O.all_states(oracle_model), key=repr)
     for state in data.draw(st.lists(st.sampled_from(states), max_size=4)):
         assert violated_by(sym, sym.state(state)) == O.violated(oracle_model, state), state
+
+
+@settings(
+    max_examples=60,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+)
+@given(model_dict=independent_models())
+def test_guards_read_over_the_written_parts_forbid_exactly_the_steps_into_bad_states(
+    model_dict: dict[str, Any],
+) -> None:
+    oracle_model = O.parse_model(model_dict)
+    if O.has_automatic_cycle(oracle_model):
+        return
+    planner = TransitionPlanner(_load(model_dict))
+    model = planner.model
+    bad = O.bad_states(oracle_model)
+    guards = {g.transition: g.guard for g in planner.guards}
+    guarded, plain = Semantics(model, guards), Semantics(model)
+    for state in O.all_states(oracle_model):
+        if state in bad or plain.automatic_enabled(state):
+            continue
+        for with_guard, without in zip(guarded.transitions, plain.transitions, strict=True):
+            if without.kind is TransitionKind.CONTROLLED and without.guard(state):
+                leads_to_bad = without.apply(state) in bad
+                assert with_guard.guard(state) == (not leads_to_bad), (without.name, state)
+    part_of = {name: p for p in components(model) for name in p.variables}
+    for name, guard in guards.items():
+        actions = model.transition(name).actions
+        relevant = {v for a in actions for v in part_of[a.target].variables}
+        relevant |= {a.source for a in actions if a.source is not None}
+        assert variables_of(guard) <= relevant, name
 
 
 def test_cells_split_into_one_component_each_and_keep_their_bad_states() -> None:
