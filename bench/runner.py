@@ -19,6 +19,7 @@ Prints Markdown and writes it to bench/results/runner.md.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import cProfile
 import io
 import json
@@ -288,8 +289,6 @@ def child_synthesis(count: int) -> None:
     """Child process: `TransitionPlanner(model)`, with its stages timed as they end."""
     import planner.transition_planner as tp_module
     from planner.station import load_station
-    from planner.symbolic import SymbolicModel
-    from planner.synthesis import bad_states
 
     def emit(record: dict[str, Any]) -> None:
         print(json.dumps(record), flush=True)
@@ -306,13 +305,17 @@ def child_synthesis(count: int) -> None:
 
     station = load_station(cells.station_text(count), f"cells_{count}.yaml")
     started = time.perf_counter()
-    with (
-        mock.patch.object(
-            tp_module, "check_dynamics", timed("cycle check", tp_module.check_dynamics)
-        ),
-        mock.patch.object(tp_module, "bad_states", timed("bad states", bad_states)),
-        mock.patch.object(SymbolicModel, "sift", timed("sift", SymbolicModel.sift)),
-    ):
+    stages = {
+        "SymbolicModel": "encoding",
+        "check_dynamics": "cycle check",
+        "bad_parts": "bad states",
+        "sift": "sift",
+    }
+    with contextlib.ExitStack() as patches:
+        for name, stage in stages.items():
+            patches.enter_context(
+                mock.patch.object(tp_module, name, timed(stage, getattr(tp_module, name)))
+            )
         planner = tp_module.TransitionPlanner(station.model)
     emit(
         {"stage": "total", "s": time.perf_counter() - started, "bits": len(planner.sym.state_bits)}
@@ -472,14 +475,14 @@ def ticks_table(rows: list[Size]) -> str:
 
 def probe_table(probe: list[Synthesis], limit: float) -> str:
     out = [
-        "| transitions | cells | automatic-cycle check s | bad states s | sift s | "
+        "| transitions | cells | encoding s | automatic-cycle check s | bad states s | sift s | "
         "TransitionPlanner(model) s |",
-        "|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|",
     ]
     for p in probe:
         stages = [
             f"{p.stages[s]:,.1f}" if s in p.stages else ("running" if p.running == s else "")
-            for s in ("cycle check", "bad states", "sift")
+            for s in ("encoding", "cycle check", "bad states", "sift")
         ]
         total = f"{p.total:,.1f}" if p.total is not None else f"> {limit:g} (killed)"
         if p.error:

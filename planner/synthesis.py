@@ -181,7 +181,7 @@ class _Closure:
                 return closure
 
 
-def _valid(sym: SymbolicModel, variables: Iterable[str]) -> Function:
+def valid_codes(sym: SymbolicModel, variables: Iterable[str]) -> Function:
     """States whose bits encode values of these variables' domains (the others are free)."""
     result = sym.true
     for name in variables:
@@ -211,8 +211,27 @@ def violations(sym: SymbolicModel, specifications: Iterable[Specification]) -> F
     return result & sym.valid
 
 
-def bad_states(sym: SymbolicModel) -> Function:
-    """The bad states: the union of each component's own, each specification's closed apart.
+@dataclass(frozen=True, slots=True)
+class BadPart:
+    """The bad states of one component (a set over its bits only)."""
+
+    component: Component
+    states: Function
+
+
+def bad_parts(sym: SymbolicModel) -> list[BadPart]:
+    """Each component's bad states, each specification closed on its own (see `bad_states`)."""
+    result: list[BadPart] = []
+    for part in components(sym.model):
+        if part.specifications:
+            close = _Closure(sym, part.transitions, valid_codes(sym, part.variables))
+            closed = [close(~sym.expr(spec.invariant)) for spec in part.specifications]
+            result.append(BadPart(part, _disjoin(sym, closed)))
+    return result
+
+
+def bad_states(sym: SymbolicModel, parts: Sequence[BadPart] | None = None) -> Function:
+    """The bad states: the union of each component's own (`parts`, if already computed).
 
     Exact under the section 8 step rule although automatic priority is global, provided no
     automatic cycle exists (loading rejects them, `check_dynamics`).  Split the state into
@@ -232,13 +251,9 @@ def bad_states(sym: SymbolicModel) -> Function:
     closures), which keeps the BDDs small: on the demo station the closures of single
     specifications have a few hundred nodes, their union tens of thousands.
     """
-    parts: list[Function] = []
-    for part in components(sym.model):
-        if not part.specifications:
-            continue
-        close = _Closure(sym, part.transitions, _valid(sym, part.variables))
-        parts += [close(~sym.expr(spec.invariant)) for spec in part.specifications]
-    return _disjoin(sym, parts) & sym.valid
+    if parts is None:
+        parts = bad_parts(sym)
+    return _disjoin(sym, [part.states for part in parts]) & sym.valid
 
 
 def _disjoin(sym: SymbolicModel, parts: Sequence[Function]) -> Function:
@@ -259,7 +274,7 @@ def violated_by(sym: SymbolicModel, state: Function) -> list[str]:
     for part in components(sym.model):
         if not part.specifications:
             continue
-        close = _Closure(sym, part.transitions, _valid(sym, part.variables))
+        close = _Closure(sym, part.transitions, valid_codes(sym, part.variables))
         for spec in part.specifications:
             if close(~sym.expr(spec.invariant)) & state & sym.valid != sym.false:
                 names.append(spec.name)
@@ -292,7 +307,7 @@ def automatic_cycle(sym: SymbolicModel) -> tuple[list[str], Function] | None:
         enabled = sym.false
         for step in steps:
             enabled |= step.guard
-        looping = enabled & _valid(sym, part.variables)
+        looping = enabled & valid_codes(sym, part.variables)
         while True:
             keep = sym.false
             for step in steps:

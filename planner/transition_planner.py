@@ -17,10 +17,12 @@ from planner.model import Model, SourceLocation
 from planner.planning import PlanQuery, PlanResult, PlanStatus, State
 from planner.search import SymbolicSearch
 from planner.semantics import compile_expr
+from planner.sifting import sift
 from planner.symbolic import Function, SymbolicModel
 from planner.synthesis import (
     SupervisorGuard,
     automatic_cycle,
+    bad_parts,
     bad_states,
     supervisor_guards,
     violated_by,
@@ -88,8 +90,9 @@ class TransitionPlanner:
         self.sym = SymbolicModel(model)
         check_dynamics(self.sym)
         if restore is None:
-            self.bad = bad_states(self.sym)
-            self.sym.sift()  # the specifications and guards now in the manager shape the order
+            parts = bad_parts(self.sym)
+            self.bad = bad_states(self.sym, parts)
+            sift(self.sym, parts)  # what synthesis leaves in the manager shapes the order
         else:
             self.bad = restore(self.sym)
         self._search = SymbolicSearch(self.sym, self.bad)
