@@ -481,10 +481,10 @@ def probe_table(probe: list[Synthesis], limit: float) -> str:
     ]
     for p in probe:
         stages = [
-            f"{p.stages[s]:,.1f}" if s in p.stages else ("running" if p.running == s else "")
+            f"{p.stages[s]:,.2f}" if s in p.stages else ("running" if p.running == s else "")
             for s in ("encoding", "cycle check", "bad states", "sift")
         ]
-        total = f"{p.total:,.1f}" if p.total is not None else f"> {limit:g} (killed)"
+        total = f"{p.total:,.2f}" if p.total is not None else f"> {limit:g} (killed)"
         if p.error:
             total = f"**failed**: {p.error}"
         out.append(f"| {p.transitions:,} | {p.cells} | {' | '.join(stages)} | {total} |")
