@@ -187,9 +187,8 @@ class SymbolicModel:
         self._expr_cache: dict[Expr, Function] = {}
         codes = [self._valid_codes(v.name) for v in model.variables]
         while len(codes) > 1:  # pairwise: one long chain of conjunctions costs quadratic time
-            codes = [a & b for a, b in zip(codes[::2], codes[1::2], strict=False)] + codes[
-                len(codes) - len(codes) % 2 :
-            ]
+            pairs = zip(codes[::2], codes[1::2], strict=False)
+            codes = [a & b for a, b in pairs] + ([codes[-1]] if len(codes) % 2 else [])
         self.valid = codes[0] if codes else self.true
         self.transitions: tuple[SymbolicTransition, ...] = tuple(
             self._transition(t) for t in model.transitions
