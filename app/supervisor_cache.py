@@ -1,7 +1,8 @@
 """A disk cache of synthesised supervisors, so that repeated `sp` runs on a model skip synthesis.
 
-Synthesis (the bad states of the specifications) is the slow part of building a planner on a
-large model (seconds on the demo station) and depends only on the model's text.  The cache
+Synthesis (the bad states of the specifications) and the sift after it are the slow part of
+building a planner (half a second on the demo station, more on large models) and depend only
+on the model's text.  The cache
 keeps, per model text, the BDD variable order and a checksum (JSON) and the bad states (CUDD's
 DDDMP format), keyed by a SHA-256 of the text, the `dd` version and this format's number.
 After a search has tuned the order (`TransitionPlanner.tuned`), `remember_order` replaces

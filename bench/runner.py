@@ -9,9 +9,9 @@ after the first fault), against the paper's nuXmv times and the issue's 20 ms ta
 Part 2 drives the runner against the simulated world on the demo station (the nominal
 assembly) and on generated models of ~100 ... 10,000 transitions (bench/cells.py), timing
 `Runner.tick` alone: idle ticks, ticks of a running station that emit no plan, and ticks that
-replan.  Stock supervisor synthesis is timed separately on growing models, each in a child
-process killed after `--synthesis-limit` seconds.  Where stock synthesis exceeds that limit,
-the tick runs build the planner with a bench-side stand-in for it, marked in the table.
+replan.  Building the transition planner (supervisor synthesis included) is timed
+separately on growing models, stage by stage, each in a child process killed after
+`--synthesis-limit` seconds.
 
 Prints Markdown and writes it to bench/results/runner.md.
 """
@@ -19,6 +19,7 @@ Prints Markdown and writes it to bench/results/runner.md.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import cProfile
 import io
 import json
@@ -246,87 +247,8 @@ def drive(
         now = round(now + step, 6)
 
 
-def components(model: Any) -> list[list[str]]:
-    """Variables grouped into independent parts: no transition or specification spans two."""
-    from planner.expressions import variables_of
-
-    parent = {v.name: v.name for v in model.variables}
-
-    def find(name: str) -> str:
-        while parent[name] != name:
-            parent[name] = parent[parent[name]]
-            name = parent[name]
-        return name
-
-    hyperedges = [
-        variables_of(t.guard)
-        | {a.target for a in t.actions}
-        | {a.source for a in t.actions if a.source is not None}
-        for t in model.transitions
-    ] + [variables_of(s.invariant) for s in model.specifications]
-    for edge in hyperedges:
-        first, *rest = sorted(edge) or [""]
-        for name in rest:
-            parent[find(name)] = find(first)
-    groups: dict[str, list[str]] = {}
-    for v in model.variables:
-        groups.setdefault(find(v.name), []).append(v.name)
-    return list(groups.values())
-
-
-def componentwise_bad_states(sym: Any) -> Any:
-    """The bad states of planner/synthesis.py, computed one independent part at a time.
-
-    A stand-in for `bad_states` on models of independent cells, where stock synthesis is
-    infeasible: its frontier is layered by distance, and with K cells whose automatics can be
-    enabled together (in valid if unreachable states) the closure needs K layers, each a
-    preimage over every transition.  Within one part the rule is the same (an effect only
-    where no automatic of the part is enabled: the other parts' automatics stop after
-    finitely many steps without touching it), and the union of the parts' closures is the
-    same set; the test checks it against `bad_states`.
-    """
-    from planner.expressions import variables_of
-    from planner.model import TransitionKind
-
-    part_of = {name: k for k, names in enumerate(components(sym.model)) for name in names}
-    count = max(part_of.values(), default=-1) + 1
-    transitions: list[list[Any]] = [[] for _ in range(count)]
-    violated = [sym.false for _ in range(count)]
-    valid = [sym.true for _ in range(count)]
-    bad = sym.false  # a specification over no variable (`false`) is violated everywhere
-    for t in sym.transitions:
-        touched = variables_of(t.transition.guard) | t.transition.written
-        if touched:  # else it changes nothing: no bad state is its preimage but bad ones
-            transitions[part_of[min(touched)]].append(t)
-    for spec in sym.model.specifications:
-        read = variables_of(spec.invariant)
-        if read:
-            violated[part_of[min(read)]] |= ~sym.expr(spec.invariant)
-        else:
-            bad |= ~sym.expr(spec.invariant)
-    for v in sym.model.variables:
-        valid[part_of[v.name]] &= sym._valid_codes(v.name)
-    for k in range(count):
-        automatic = sym.false
-        for t in transitions[k]:
-            if t.kind is TransitionKind.AUTOMATIC:
-                automatic |= t.guard
-        closure = frontier = violated[k] & valid[k]
-        while frontier != sym.false:
-            by_automatic = by_effect = sym.false
-            for t in transitions[k]:
-                if t.kind is TransitionKind.AUTOMATIC:
-                    by_automatic |= sym.preimage(t, frontier)
-                elif t.kind is TransitionKind.EFFECT:
-                    by_effect |= sym.preimage(t, frontier)
-            frontier = (by_automatic | (by_effect & ~automatic)) & valid[k] & ~closure
-            closure |= frontier
-        bad |= closure
-    return bad & sym.valid
-
-
-def build_cells(count: int, stock: bool, emit: Callable[[dict[str, Any]], None]) -> tuple[Any, Any]:
-    """Station and planners for `count` cells; `stock`: the planner's own construction."""
+def build_cells(count: int, emit: Callable[[dict[str, Any]], None]) -> tuple[Any, Any]:
+    """Station and planners for `count` cells, each stage's time emitted as it ends."""
     from app.scenario import Planners
     from planner.operation_planner import OperationPlanner
     from planner.station import load_station
@@ -336,18 +258,7 @@ def build_cells(count: int, stock: bool, emit: Callable[[dict[str, Any]], None])
     station = load_station(cells.station_text(count), f"cells_{count}.yaml")
     emit({"stage": "load", "s": time.perf_counter() - started})
     started = time.perf_counter()
-    if stock:
-        tp = TransitionPlanner(station.model)
-    else:
-
-        def restore(sym: Any) -> Any:
-            bad = componentwise_bad_states(sym)
-            sym.sift()  # as after stock synthesis
-            return bad
-
-        # the automatic-cycle check has the same layered fixpoint; the cells have no cycle
-        with mock.patch("planner.transition_planner.check_dynamics", lambda sym: None):
-            tp = TransitionPlanner(station.model, restore=restore)
+    tp = TransitionPlanner(station.model)
     emit({"stage": "transition planner", "s": time.perf_counter() - started})
     started = time.perf_counter()
     op = OperationPlanner(station)
@@ -362,24 +273,22 @@ def build_cells(count: int, stock: bool, emit: Callable[[dict[str, Any]], None])
     return station, Planners(tp, op)
 
 
-def child_ticks(count: int, stock: bool, ticks: int, idle: int) -> None:
+def child_ticks(count: int, ticks: int, idle: int) -> None:
     """Child process: build, then stream one JSON line per tick (the parent may kill us)."""
 
     def emit(record: dict[str, Any]) -> None:
         print(json.dumps(record), flush=True)
 
-    station, planners = build_cells(count, stock, emit)
+    station, planners = build_cells(count, emit)
     names = [cells.intention(c) for c in cells.cell_names(count)]
     for tick in drive(station, planners, names, ticks=ticks, idle=idle, cycle=True):
         emit({"phase": tick.phase, "ms": tick.millis, "plans": tick.plans})
 
 
 def child_synthesis(count: int) -> None:
-    """Child process: stock `TransitionPlanner(model)`, with its stages timed as they end."""
+    """Child process: `TransitionPlanner(model)`, with its stages timed as they end."""
     import planner.transition_planner as tp_module
     from planner.station import load_station
-    from planner.symbolic import SymbolicModel
-    from planner.synthesis import bad_states
 
     def emit(record: dict[str, Any]) -> None:
         print(json.dumps(record), flush=True)
@@ -396,13 +305,17 @@ def child_synthesis(count: int) -> None:
 
     station = load_station(cells.station_text(count), f"cells_{count}.yaml")
     started = time.perf_counter()
-    with (
-        mock.patch.object(
-            tp_module, "check_dynamics", timed("cycle check", tp_module.check_dynamics)
-        ),
-        mock.patch.object(tp_module, "bad_states", timed("bad states", bad_states)),
-        mock.patch.object(SymbolicModel, "sift", timed("sift", SymbolicModel.sift)),
-    ):
+    stages = {
+        "SymbolicModel": "encoding",
+        "check_dynamics": "cycle check",
+        "bad_parts": "bad states",
+        "sift": "sift",
+    }
+    with contextlib.ExitStack() as patches:
+        for name, stage in stages.items():
+            patches.enter_context(
+                mock.patch.object(tp_module, name, timed(stage, getattr(tp_module, name)))
+            )
         planner = tp_module.TransitionPlanner(station.model)
     emit(
         {"stage": "total", "s": time.perf_counter() - started, "bits": len(planner.sym.state_bits)}
@@ -448,7 +361,7 @@ class Synthesis:
 
 
 def probe_synthesis(sizes: Sequence[int], limit: float) -> list[Synthesis]:
-    """Stock synthesis on growing models until one takes longer than `limit` seconds."""
+    """The planner's construction on growing models until one takes longer than `limit` s."""
     out = []
     for transitions in sizes:
         count = cells.cells_for(transitions)
@@ -526,8 +439,8 @@ def p99(values: list[float]) -> float:
 
 def ticks_table(rows: list[Size]) -> str:
     out = [
-        "| model | transitions | variables (bits) | stock supervisor synthesis "
-        "| planners for the ticks | idle tick median ms (n) "
+        "| model | transitions | variables (bits) | supervisor synthesis "
+        "| planners built in | idle tick median ms (n) "
         "| running tick w/o replanning median / p99 ms (n) "
         "| tick with replanning median ms (n) | target | met |",
         "|---|---|---|---|---|---|---|---|---|---|",
@@ -562,16 +475,16 @@ def ticks_table(rows: list[Size]) -> str:
 
 def probe_table(probe: list[Synthesis], limit: float) -> str:
     out = [
-        "| transitions | cells | automatic-cycle check s | bad states s | sift s | "
+        "| transitions | cells | encoding s | automatic-cycle check s | bad states s | sift s | "
         "TransitionPlanner(model) s |",
-        "|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|",
     ]
     for p in probe:
         stages = [
-            f"{p.stages[s]:,.1f}" if s in p.stages else ("running" if p.running == s else "")
-            for s in ("cycle check", "bad states", "sift")
+            f"{p.stages[s]:,.2f}" if s in p.stages else ("running" if p.running == s else "")
+            for s in ("encoding", "cycle check", "bad states", "sift")
         ]
-        total = f"{p.total:,.1f}" if p.total is not None else f"> {limit:g} (killed)"
+        total = f"{p.total:,.2f}" if p.total is not None else f"> {limit:g} (killed)"
         if p.error:
             total = f"**failed**: {p.error}"
         out.append(f"| {p.transitions:,} | {p.cells} | {' | '.join(stages)} | {total} |")
@@ -590,7 +503,6 @@ def run_size(
     row = Size(f"{count} cells", count * cells.TRANSITIONS_PER_CELL)
     row.target = LARGE_TICK_TARGET_MS if row.transitions >= 10_000 else None
     known = next((p for p in probe if p.cells == count), None)
-    stock = known is not None and known.total is not None
     guess = extrapolate(probe, row.transitions)
     if known is not None and known.total is not None:
         row.synthesis = f"{known.total:,.1f} s"
@@ -606,14 +518,14 @@ def run_size(
         row.synthesis += f"; extrapolated {fmt_s(guess)}" if guess else ""
     started = time.perf_counter()
     arguments = ["--child", "ticks", "--cells", str(count), "--ticks", str(ticks)]
-    arguments += ["--idle", str(idle)] + ([] if stock else ["--componentwise"])
+    arguments += ["--idle", str(idle)]
     records, finished, error = run_child(arguments, budget)
     elapsed = time.perf_counter() - started
     stages = {r["stage"]: r for r in records if "stage" in r}
     if "sizes" in stages:
         row.variables, row.bits = stages["sizes"]["variables"], stages["sizes"]["bits"]
     build = sum(r["s"] for r in records if "s" in r)
-    row.build = ("stock" if stock else "bench stand-ins†") + f", built in {build:,.1f} s"
+    row.build = f"{build:,.1f} s"
     row.ticks = [
         Tick(r["phase"], r["ms"], tuple((label, ms) for label, ms in r["plans"]))
         for r in records
@@ -628,7 +540,7 @@ def run_size(
     return row
 
 
-def demo_ticks(station: Any, planners: Any, idle: int, synthesis: float) -> Size:
+def demo_ticks(station: Any, planners: Any, idle: int, synthesis: float, build: float) -> Size:
     from app.scenario import load_scenario
 
     path = SCENARIOS / "nominal.yaml"
@@ -637,7 +549,7 @@ def demo_ticks(station: Any, planners: Any, idle: int, synthesis: float) -> Size
     row.variables = len(station.model.variables)
     row.bits = len(planners.transition.sym.state_bits)
     row.synthesis = f"{synthesis:,.1f} s"
-    row.build = "stock"
+    row.build = f"{build:,.1f} s"
     row.target = DEMO_TICK_TARGET_MS
     row.ticks = list(
         drive(
@@ -660,12 +572,11 @@ def profile_ticks(transitions: int, ticks: int, idle: int, top: int = 15) -> Non
     """cProfile of `Runner.tick`, per kind of tick, in this process (0: the demo, nominal)."""
     if transitions:
         count = cells.cells_for(transitions)
-        stock = count * cells.TRANSITIONS_PER_CELL <= 200  # stock synthesis takes seconds
 
         def emit(record: dict[str, Any]) -> None:
             print(json.dumps(record), file=sys.stderr)
 
-        station, planners = build_cells(count, stock, emit)
+        station, planners = build_cells(count, emit)
         names = [cells.intention(c) for c in cells.cell_names(count)]
         run = drive(station, planners, names, ticks=ticks, idle=idle, cycle=True, profile=True)
     else:
@@ -725,15 +636,6 @@ def revision() -> str:
     return f"commit {commit or 'unknown'}" + (" with uncommitted changes" if dirty else "")
 
 
-FOOTNOTES = (
-    "† Bench stand-ins, used where stock synthesis was not tried or exceeded the limit: the "
-    "bad states "
-    "computed per independent cell (`componentwise_bad_states`: the same set as "
-    "`bad_states`, checked by bench/test_runner_bench.py) passed through "
-    "`TransitionPlanner(restore=...)`, and the automatic-cycle check skipped.\n"
-)
-
-
 # ---- main ------------------------------------------------------------------------------------
 
 
@@ -748,8 +650,8 @@ def main() -> None:
         "--probe",
         type=int,
         nargs="*",
-        default=[100, 200, 300, 400, 500],
-        help="transitions to time stock synthesis on, until one exceeds --synthesis-limit",
+        default=[100, 1000, 3000, 10000],
+        help="transitions to time the planner's construction on, until one exceeds the limit",
     )
     parser.add_argument("--synthesis-limit", type=float, default=90.0, help="seconds")
     parser.add_argument("--budget", type=float, default=90.0, help="seconds per size's tick run")
@@ -765,10 +667,9 @@ def main() -> None:
     )
     parser.add_argument("--child", choices=["ticks", "synthesis"], help=argparse.SUPPRESS)
     parser.add_argument("--cells", type=int, default=1, help=argparse.SUPPRESS)
-    parser.add_argument("--componentwise", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child == "ticks":
-        child_ticks(args.cells, not args.componentwise, args.ticks, args.idle)
+        child_ticks(args.cells, args.ticks, args.idle)
         return
     if args.child == "synthesis":
         child_synthesis(args.cells)
@@ -777,7 +678,7 @@ def main() -> None:
         profile_ticks(args.profile, args.ticks, args.idle)
         return
     if args.quick:
-        args.runs, args.sizes, args.probe = 1, [100, 1000], [100, 200]
+        args.runs, args.sizes, args.probe = 1, [100, 1000], [100, 1000]
         args.synthesis_limit, args.budget, args.ticks = 30.0, 30.0, 200
 
     from app.scenario import Planners
@@ -788,8 +689,10 @@ def main() -> None:
     measured = revision()
     station = load_station(DEMO.read_text(), str(DEMO))
     started = time.perf_counter()
-    planners = Planners(TransitionPlanner(station.model), OperationPlanner(station))
+    transition_planner = TransitionPlanner(station.model)
     demo_synthesis = time.perf_counter() - started
+    planners = Planners(transition_planner, OperationPlanner(station))
+    demo_build = time.perf_counter() - started
     paths = sorted(SCENARIOS.glob("e[1-9]_*.yaml"))
     if args.only:
         paths = [p for p in paths if any(o in p.stem for o in args.only)]
@@ -799,7 +702,8 @@ def main() -> None:
         print(f"  {path.stem}: done", file=sys.stderr)
 
     probe = probe_synthesis(args.probe, args.synthesis_limit) if args.sizes else []
-    sizes = [demo_ticks(station, planners, args.idle, demo_synthesis)] if args.sizes else []
+    demo = demo_ticks(station, planners, args.idle, demo_synthesis, demo_build)
+    sizes = [demo] if args.sizes else []
     for transitions in args.sizes:
         sizes.append(
             run_size(transitions, probe, args.synthesis_limit, args.budget, args.ticks, args.idle)
@@ -827,14 +731,14 @@ def main() -> None:
             "intentions (bench/cells.py: one cell after another) are started one after another; "
             "ticks that emitted no plan event (effects pending, operations executing) vs. ticks "
             f"that replanned. Each generated size runs in a child process for at most "
-            f"{args.budget:g} s (building included).\n\n" + ticks_table(sizes) + "\n" + FOOTNOTES
+            f"{args.budget:g} s (building included).\n\n" + ticks_table(sizes)
         )
     if probe:
         limit = args.synthesis_limit
         largest = max((p.transitions for p in probe if p.total is not None), default=0)
         fitted = fit(probe)
         text += (
-            f"\n### Stock supervisor synthesis versus size (each killed after {limit:g} s)\n\n"
+            f"\n### Building the transition planner versus size (each killed after {limit:g} s)\n\n"
             + probe_table(probe, limit)
             + (
                 f"\nLargest size synthesised within {limit:g} s: {largest:,} transitions"

@@ -7,11 +7,10 @@ from __future__ import annotations
 
 from app.scenario import Planners
 from bench import cells
-from bench.runner import componentwise_bad_states, drive, match_paper
+from bench.runner import drive, match_paper
 from planner.operation_planner import OperationPlanner
 from planner.runner_io import Event
 from planner.station import load_station
-from planner.synthesis import bad_states
 from planner.transition_planner import TransitionPlanner
 
 
@@ -36,13 +35,6 @@ def test_cell_intentions_run_to_completion_again_and_again() -> None:
     assert set(labels) == {"OP", "TP"}  # no recovery: nothing failed
     running = [t for t in ticks[10:] if not t.plans]
     assert len(running) > 200  # most ticks wait for effects without replanning
-
-
-def test_componentwise_bad_states_are_the_planners_bad_states() -> None:
-    station = load_station(cells.station_text(3), "cells_3.yaml")
-    planner = TransitionPlanner(station.model)
-    assert planner.bad != planner.sym.false
-    assert componentwise_bad_states(planner.sym) == bad_states(planner.sym)
 
 
 def test_paper_actions_are_matched_in_order() -> None:

@@ -102,7 +102,10 @@ def variable_order(model: Model, bits: Mapping[str, tuple[str, ...]]) -> list[st
         position = new
     # FORCE fixes neighbourhoods, not direction: put the hubs (variables in many hyperedges,
     # such as who holds a shared tool) on top, where they split the BDD early
-    degree = {name: sum(name in e for e in edges) for name in names}
+    degree = dict.fromkeys(names, 0)
+    for e in edges:
+        for v in e:
+            degree[v] += 1
     ordered = sorted(names, key=lambda n: position[n])
     last = len(ordered) - 1
     if sum(degree[n] * i for i, n in enumerate(ordered)) > sum(
@@ -173,8 +176,20 @@ class SymbolicModel:
         self.true: Function = self.bdd.true
         self.false: Function = self.bdd.false
         self._value_cache: dict[tuple[str, Value], Function] = {}
+        # each value's cube from its literals: `bdd.cube` costs a pass over every declared
+        # bit, which dominated building a model of thousands of variables
+        for variable in model.variables:
+            for value in variable.domain:
+                cube = self.true
+                for bit, on in self.code(variable.name, value).items():
+                    cube &= self.bdd.var(bit) if on else ~self.bdd.var(bit)
+                self._value_cache[(variable.name, value)] = cube
         self._expr_cache: dict[Expr, Function] = {}
-        self.valid = self._conjoin(self._valid_codes(v.name) for v in model.variables)
+        codes = [self._valid_codes(v.name) for v in model.variables]
+        while len(codes) > 1:  # pairwise: one long chain of conjunctions costs quadratic time
+            pairs = zip(codes[::2], codes[1::2], strict=False)
+            codes = [a & b for a, b in pairs] + ([codes[-1]] if len(codes) % 2 else [])
+        self.valid = codes[0] if codes else self.true
         self.transitions: tuple[SymbolicTransition, ...] = tuple(
             self._transition(t) for t in model.transitions
         )

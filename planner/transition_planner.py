@@ -17,11 +17,13 @@ from planner.loading import Diagnostic, ModelError
 from planner.model import Model, SourceLocation
 from planner.planning import PlanQuery, PlanResult, PlanStatus, State
 from planner.semantics import compile_expr
+from planner.sifting import sift
 from planner.symbolic import Function, SymbolicModel
 from planner.symbolic_planner import ALL_REDUCTIONS, Reductions, SymbolicPlanner
 from planner.synthesis import (
     SupervisorGuard,
     automatic_cycle,
+    bad_parts,
     bad_states,
     supervisor_guards,
     violated_by,
@@ -88,8 +90,9 @@ class TransitionPlanner:
         self.sym = SymbolicModel(model)
         check_dynamics(self.sym)
         if restore is None:
-            self.bad = bad_states(self.sym)
-            self.sym.sift()  # the specifications and guards now in the manager shape the order
+            parts = bad_parts(self.sym)
+            self.bad = bad_states(self.sym, parts)
+            sift(self.sym, parts)  # what synthesis leaves in the manager shapes the order
         else:
             self.bad = restore(self.sym)
         self._search = SymbolicPlanner(self.sym, self.bad, reductions)
@@ -117,6 +120,7 @@ class TransitionPlanner:
 
     @cached_property
     def guards(self) -> list[SupervisorGuard]:
+        """Computed when first asked for: `sp check` prints them, planning needs only `bad`."""
         return supervisor_guards(self.sym, self.bad)
 
     @cached_property

@@ -357,3 +357,91 @@ def query_extensions(
         "disabled": draw(st.lists(st.sampled_from(names), max_size=2, unique=True)),
         "max_steps": 8 - draw(st.integers(0, 8)),
     }
+
+
+# --------------------------------------------------------------------------- independent parts
+
+PART_NAMES = ("a", "b", "r.pos", "r.ref", "flag")
+
+
+@st.composite
+def _part(draw: st.DrawFn, prefix: str, max_states: int) -> tuple[list[Var], list[dict[str, Any]]]:
+    """One part's variables (names under ``prefix``) and its automatic, effect and
+    controlled transitions, each reading and writing only the part's own variables."""
+    n_vars = draw(st.integers(2, 3))  # the shapes below need two variables
+    names = draw(
+        st.lists(st.sampled_from(PART_NAMES), min_size=n_vars, max_size=n_vars, unique=True)
+    )
+    variables: list[Var] = []
+    states = 1
+    for name in names:
+        var = draw(_variable(f"{prefix}.{name}"))
+        if states * len(domain_values(var)) > max_states:
+            var = {"name": f"{prefix}.{name}", "domain": "bool"}
+            if states * 2 > max_states:
+                break
+        states *= len(domain_values(var))
+        variables.append(var)
+    # at least one automatic and one effect per part, so that automatics of several parts
+    # can be enabled together and effects wait for all of them (the global priority)
+    more = draw(st.lists(st.sampled_from(["automatic", "effect", "controlled"]), max_size=4))
+    kinds = ["automatic", "effect", *more]
+    transitions = []
+    for i, kind in enumerate(kinds):
+        if kind == "automatic" and draw(st.integers(0, 9)) < 9:  # else often a cycle
+            guard, actions = draw(_progressing_automatic(variables))
+        elif kind == "effect":
+            guard, actions = draw(_effect(variables))
+        elif kind == "controlled":
+            guard, actions = draw(_structured(variables))
+        else:
+            guard, actions = draw(random_expression(variables)), draw(_actions(variables))
+        transitions.append(
+            {"name": f"{prefix}.t{i}", "kind": kind, "guard": guard, "actions": actions}
+        )
+    return variables, transitions
+
+
+@st.composite
+def independent_models(draw: st.DrawFn) -> dict[str, Any]:
+    """A flat model of 2-3 parts over disjoint variables (at most ``MAX_STATES`` states in
+    all), each with automatic, effect and controlled transitions and up to two
+    specifications (the first part at least one); a few controlled transitions may read
+    and write across parts (they do not tie parts together for synthesis, as bad states
+    do not depend on them)."""
+    parts = draw(st.integers(2, 3))
+    budget = int(MAX_STATES ** (1 / parts))
+    variables: list[Var] = []
+    transitions: list[dict[str, Any]] = []
+    specs: list[dict[str, str]] = []
+    for k in range(parts):
+        part_vars, part_transitions = draw(_part(f"p{k}", budget))
+        variables += part_vars
+        transitions += part_transitions
+        # parts without a specification too: their automatics still take priority
+        for _ in range(draw(st.integers(0 if k else 1, 2))):
+            specs.append(draw(_specification(part_vars, len(specs))))
+    prefix = {v["name"]: v["name"].split(".")[0] for v in variables}
+    copies = [
+        f"{u['name']} := {w['name']}"
+        for u in variables
+        for w in variables
+        if _same_domain(u, w) and prefix[u["name"]] != prefix[w["name"]]
+    ]
+    for i in range(draw(st.integers(0, 2))):
+        guard = draw(random_expression(variables, 2))
+        if copies and draw(st.booleans()):  # the next state's part depends on another part
+            actions = [draw(st.sampled_from(copies))]
+        else:
+            actions = draw(_actions(variables))
+        transitions.append({"name": f"across.t{i}", "guard": guard, "actions": actions})
+    targets = {
+        action.split(":=")[0].strip()
+        for t in transitions
+        if t.get("kind", "controlled") in ("controlled", "automatic")
+        for action in t["actions"]
+    }
+    for var in variables:  # as in flat_models: only the world changes measured variables
+        if var.get("kind") == "measured" and var["name"] in targets:
+            var["kind"] = "estimated"
+    return {"variables": variables, "transitions": transitions, "specifications": specs}
