@@ -22,6 +22,7 @@ from planner.loading import Diagnostic, ModelError, closest, scope_for
 from planner.model import Model, SourceLocation, TransitionKind, VariableKind
 from planner.planning import PlanQuery, PlanResult, PlanStatus, State
 from planner.station import Station, load_station
+from planner.synthesis import COUNTABLE_BITS
 
 
 class UsageError(Exception):
@@ -94,6 +95,11 @@ def _parser() -> argparse.ArgumentParser:
     check = commands.add_parser("check", help="validate a model and print its size")
     check.add_argument("model", help="model file (YAML)")
     check.add_argument("--json", action="store_true", help="print one JSON object")
+    check.add_argument(
+        "--reachable",
+        action="store_true",
+        help="also count the states plans can reach from the initial state (explores them all)",
+    )
     for command in (plan, run, check):
         command.add_argument(
             "--no-cache",
@@ -355,7 +361,7 @@ def _check(args: argparse.Namespace) -> int:
     station, text = _read_station(args.model)
     model = station.model
     planner = _planner(args, model, text)
-    report = _size_report(model, planner)
+    report = _size_report(model, planner, reachable=args.reachable)
     if args.json:
         print(json.dumps(report))
         return 0
@@ -366,23 +372,34 @@ def _check(args: argparse.Namespace) -> int:
     by_kind = ", ".join(f"{n} {k}" for k, n in report["transitions_by_kind"].items())
     print(f"transitions: {report['transitions']} ({by_kind})")
     print(f"specifications: {report['specifications']}")
-    print(
-        f"states: {report['states']}, bad: {report['bad_states']}, "
-        f"reachable from the initial state: {report['reachable_states']}"
-    )
+    sizes = f"states: {_count_text(report['states'])}, bad: {_count_text(report['bad_states'])}"
+    if "reachable_states" in report:
+        sizes += f", reachable from the initial state: {_count_text(report['reachable_states'])}"
+    print(sizes)
     guards = report["supervisor_guards"]
     print(f"supervisor guards added: {len(guards)}")
     for guard in guards:
         print(f"  {guard['transition']}: {guard['guard']}")
-        print(f"      (forbids it in {guard['forbidden_states']} states)")
+        print(f"      (forbids it in {_count_text(guard['forbidden_states'])} states)")
     return 0
 
 
-def _size_report(model: Model, planner: Any) -> dict[str, Any]:
+def _count_text(count: int | None) -> str:
+    return "more than 2^1000" if count is None else str(count)
+
+
+def _size_report(model: Model, planner: Any, reachable: bool = False) -> dict[str, Any]:
+    """Sizes for `sp check`; counts CUDD cannot make (over 1,000 bits, its doubles
+    overflow) are None."""
     sym = planner.sym
     variable_kinds = Counter(v.kind for v in model.variables)
     transition_kinds = Counter(t.kind for t in model.transitions)
-    return {
+    countable = len(sym.state_bits) <= COUNTABLE_BITS
+
+    def count(states: Any) -> int | None:
+        return sym.count(states) if countable else None
+
+    report = {
         "valid": True,
         "variables": len(model.variables),
         "variables_by_kind": {k.value: variable_kinds[k] for k in VariableKind},
@@ -390,9 +407,8 @@ def _size_report(model: Model, planner: Any) -> dict[str, Any]:
         "transitions": len(model.transitions),
         "transitions_by_kind": {k.value: transition_kinds[k] for k in TransitionKind},
         "specifications": len(model.specifications),
-        "states": sym.count(sym.true),
-        "bad_states": sym.count(planner.bad),
-        "reachable_states": sym.count(planner.reachable(tuple(model.initial_values().values()))),
+        "states": count(sym.true),
+        "bad_states": count(planner.bad),
         "supervisor_guards": [
             {
                 "transition": g.transition,
@@ -402,6 +418,10 @@ def _size_report(model: Model, planner: Any) -> dict[str, Any]:
             for g in planner.guards
         ],
     }
+    if reachable:
+        start = tuple(model.initial_values().values())
+        report["reachable_states"] = count(planner.reachable(start))
+    return report
 
 
 if __name__ == "__main__":

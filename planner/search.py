@@ -14,7 +14,7 @@ so a planner whose order was tuned and cached plans exactly like a fresh one.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 from planner.model import TransitionKind
@@ -54,28 +54,19 @@ class Outcome:
     exhausted: bool = False  # no state needed the whole budget: a larger one cannot help
 
 
-Tuner = Callable[[], None]
-"""Called once with the search's layers alive when they first grow large (see `search`)."""
-
 Layer = list[Function]  # one set per number of counted steps taken, 0 .. budget
 
-TUNE_NODES = 20_000
 CANONICAL_ROUNDS = 3
 
 
-def search(sym: SymbolicModel, problem: Problem, tune: Tuner | None = None) -> Outcome:
-    """Breadth-first from the start; the first layer meeting the goal gives the plan.
-
-    `tune` (sifting the variable order) runs when a layer first exceeds `TUNE_NODES`:
-    sifting then sees the sets a search really builds, not just the specifications.
-    """
+def search(sym: SymbolicModel, problem: Problem) -> Outcome:
+    """Breadth-first from the start; the first layer meeting the goal gives the plan."""
     budget = problem.budget
     plain = tuple(t for t in problem.transitions if t.name not in problem.counted)
     counted = tuple(t for t in problem.transitions if t.name in problem.counted)
     false = sym.false
     layers: list[Layer] = [[problem.start] + [false] * budget]
     seen = [problem.start] * (budget + 1)  # seen[j]: reached with at most j counted steps
-    tuned = tune is None
     while True:
         depth = len(layers) - 1
         for j, states in enumerate(layers[-1]):
@@ -105,10 +96,6 @@ def search(sym: SymbolicModel, problem: Problem, tune: Tuner | None = None) -> O
         if all(f == false for f in frontier):
             break  # fixpoint: the goal is unreachable at any length
         layers.append(frontier)
-        if not tuned and max(len(f) for f in frontier) > TUNE_NODES:
-            assert tune is not None
-            tune()
-            tuned = True
     # a larger budget reaches more only through a counted step out of the last count
     exhausted = not counted or all(
         image(sym, problem, layer[budget] & problem.always, counted) & problem.allowed & ~seen[-1]
@@ -217,6 +204,29 @@ def _closed(problem: Problem, layer: Layer) -> Layer:
 
 def _reads(t: SymbolicTransition) -> frozenset[str]:
     return reads(t.transition)
+
+
+def probe(
+    sym: SymbolicModel,
+    start: Function,
+    transitions: Sequence[SymbolicTransition],
+    automatic: Function,
+    allowed: Function,
+    layers: int,
+) -> None:
+    """`layers` breadth-first layers from `start`, for the work they take (see
+    `SymbolicPlanner.tune`)."""
+    frontier = reached = start & allowed
+    for _ in range(layers):
+        source = cudd.restrict(frontier, frontier | ~reached)
+        free = source & ~automatic
+        found = sym.false
+        for t in transitions:
+            found |= sym.image(t, source if t.kind is TransitionKind.AUTOMATIC else free)
+        frontier = found & allowed & ~reached
+        if frontier == sym.false:
+            return
+        reached |= frontier
 
 
 def reachable(

@@ -194,6 +194,8 @@ class SymbolicModel:
             self._transition(t) for t in model.transitions
         )
         self.by_name = {t.name: t for t in self.transitions}
+        # the static order the variables were declared in (FORCE), before any sifting
+        self.initial_order: list[str] = sorted(self.bdd.vars, key=self.bdd.level_of_var)
         self._restricted: dict[tuple[str, frozenset[str]], SymbolicTransition] = {}
         self._bit_owner = {bit: name for name, bits in self.bits.items() for bit in bits}
 

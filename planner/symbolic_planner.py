@@ -9,6 +9,7 @@ replays the plan on full states, checking every step against the concrete semant
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 
@@ -16,13 +17,14 @@ from planner.expressions import Expr, Value, conjunction, conjuncts, variables_o
 from planner.model import TransitionKind
 from planner.planning import PlanQuery, PlanResult, PlanStatus, State
 from planner.relevance import Component, Structure, allowed_conjuncts, cone_of_influence
-from planner.search import Outcome, Problem, Tuner, search
+from planner.search import Outcome, Problem, probe, search
 from planner.semantics import Predicate, Semantics, compile_expr
+from planner.sifting import blocks as sifting_blocks
 from planner.symbolic import Function, SymbolicModel, SymbolicTransition
 from planner.symmetry import Swapper, Symmetry, find_symmetries, neighbours
+from planner.synthesis import COUNTABLE_BITS
 
-# CUDD counts minterms in doubles, which overflow beyond 2^1024
-COUNTABLE_BITS = 1000
+PROBE_LAYERS = 12
 
 
 @dataclass(frozen=True)
@@ -81,14 +83,44 @@ class SymbolicPlanner:
         self._swapper_cache: dict[tuple[str, frozenset[str]], Swapper] = {}
 
     def tune(self) -> None:
-        """Sift once with a large search's layers alive: the order synthesis leaves is made
-        for the specifications, not for the sets a search builds."""
-        if not self.tuned:
-            self.sym.sift()
-            self.tuned = True
+        """Choose the variable order for search, once: the one synthesis left (sifted for the
+        bad states and guards) or the static FORCE order the model was declared in, by the
+        work a short breadth-first probe from the model's initial state does in each.
 
-    def _tuner(self) -> Tuner | None:
-        return None if self.tuned else self.tune
+        Neither wins everywhere: on the demo station the FORCE order halves the work of
+        its long goals, on the station family the sifted one does.  A probe of
+        `PROBE_LAYERS` layers predicts which (bench/planning.py); models of independent
+        blocks keep their per-block order (planner/sifting.py), where a probe would image
+        every block.  The plans do not depend on the choice, only the time.
+        """
+        if self.tuned:
+            return
+        self.tuned = True
+        sym = self.sym
+        if len(sifting_blocks(self.model)) > 1:
+            return
+        current = sorted(sym.bdd.vars, key=sym.bdd.level_of_var)
+        candidates = [current]
+        if sym.initial_order != current:
+            candidates.append(sym.initial_order)
+        costs = []
+        for order in candidates:
+            sym.reorder(order)
+            costs.append(self._probe())
+        best = candidates[costs.index(min(costs))]
+        if best != candidates[-1]:
+            sym.reorder(best)
+
+    def _probe(self) -> float:
+        """The BDD work (CUDD cache lookups, deterministic) of `PROBE_LAYERS` breadth-first
+        layers from the initial state over every transition but maintenance ones."""
+        sym = self.sym
+        usable = tuple(t for t in sym.transitions if t.kind is not TransitionKind.MAINTENANCE)
+        automatic = self.automatic(usable)
+        start = sym.state(tuple(v.initial for v in self.model.variables))
+        before = _lookups(sym)
+        probe(sym, start, usable, automatic, self.good, PROBE_LAYERS)
+        return _lookups(sym) - before
 
     # -- the query's sets ------------------------------------------------------------------------
 
@@ -154,6 +186,7 @@ class SymbolicPlanner:
     # -- planning ------------------------------------------------------------------------------
 
     def plan(self, query: PlanQuery) -> PlanResult:
+        self.tune()
         sym = self.sym
         sets = self._sets(query)
         start = sym.state(query.start)
@@ -296,16 +329,14 @@ class SymbolicPlanner:
     ) -> _Part:
         problem = self.problem(query, sets, variables, goal)
         if not (query.maintenance and query.fewest_maintenance):
-            outcome = search(self.sym, problem, self._tuner())
+            outcome = search(self.sym, problem)
             return _Part(variables, outcome.plan, outcome, problem.variables)
         counted = frozenset(
             t.name for t in problem.transitions if t.kind is TransitionKind.MAINTENANCE
         )
         layers = 0
         for budget in range(query.max_steps + 1):
-            outcome = search(
-                self.sym, replace(problem, counted=counted, budget=budget), self._tuner()
-            )
+            outcome = search(self.sym, replace(problem, counted=counted, budget=budget))
             layers += outcome.layers
             if outcome.found or outcome.exhausted:
                 break
@@ -474,6 +505,12 @@ class SymbolicPlanner:
             state = self.semantics.by_name[name].apply(state)
             states.append(state)
         return tuple(states)
+
+
+def _lookups(sym: SymbolicModel) -> float:
+    with warnings.catch_warnings():  # dd warns that another of its statistics changed unit
+        warnings.simplefilter("ignore", UserWarning)
+        return float(sym.bdd.statistics()["cache_lookups"])
 
 
 def _assignment(sym: SymbolicModel, values: Mapping[str, Value]) -> dict[str, bool]:

@@ -345,6 +345,9 @@ def _next_looping_step(
     raise AssertionError("a state in the looping set has no looping step")
 
 
+COUNTABLE_BITS = 1000
+
+
 # ---- supervisor guards -----------------------------------------------------------------------
 
 
@@ -354,7 +357,7 @@ class SupervisorGuard:
 
     transition: str
     guard: Expr
-    forbidden_states: int
+    forbidden_states: int | None  # None when too many to count
 
     def describe(self) -> str:
         return format_expr(self.guard)
@@ -395,7 +398,9 @@ def supervisor_guards(sym: SymbolicModel, bad: Function) -> list[SupervisorGuard
         care_here = sym.bdd.exist(hidden, care) if hidden else care
         forbidden_here = sym.bdd.exist(hidden, forbidden) if hidden else forbidden
         guard = _readable(cover, care_here, forbidden_here)
-        states = int(sym.bdd.count(forbidden, nvars=len(sym.state_bits)))  # all valid
+        # all valid; CUDD counts in doubles, which overflow beyond 2^1024
+        bits = len(sym.state_bits)
+        states = int(sym.bdd.count(forbidden, nvars=bits)) if bits <= COUNTABLE_BITS else None
         result.append(SupervisorGuard(t.name, guard, states))
     return result
 

@@ -136,6 +136,9 @@ def test_check_prints_the_size_and_the_added_guards() -> None:
     report = json.loads(sp("check", str(EXAMPLE), "--json").stdout)
     assert report["bad_states"] == 10
     assert [g["transition"] for g in report["supervisor_guards"]] == ["r1.goto_bp1"]
+    assert "reachable_states" not in report  # exploring every state is asked for
+    counted = json.loads(sp("check", str(EXAMPLE), "--json", "--reachable").stdout)
+    assert 0 < counted["reachable_states"] <= counted["states"] - counted["bad_states"]
 
 
 def test_both_engines_give_the_same_minimal_length() -> None:
