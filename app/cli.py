@@ -264,6 +264,7 @@ def _run(args: argparse.Namespace) -> int:
     else:
         scenario = Scenario(file="(none)")
     planners = Planners(_planner(args, station.model, text), OperationPlanner(station))
+    planners.transition.prepare()  # before the clock starts, as a station does while it builds
     finished = False
     for event in play(station, scenario, planners, speed=args.speed, stopwatch=time.perf_counter):
         if args.quiet and event.kind in ("effect", "taken"):

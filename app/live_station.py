@@ -93,6 +93,8 @@ def build_model(version: ModelVersion, cache: Path | None) -> ActiveModel:
     """Parse a stored version and build its planners (seconds, unless the supervisor is cached)."""
     station = load_station(version.text, f"model version {version.number}")
     planner = supervisor_cache.planner(station.model, version.text, "bdd", cache)
+    planner.prepare()  # here, beside the loop, rather than in its first tick's plan
+    supervisor_cache.remember_order(planner, version.text, cache)
     return ActiveModel(
         version.id, version.number, version.text, station, planner, OperationPlanner(station)
     )

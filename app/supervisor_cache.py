@@ -2,13 +2,12 @@
 
 Synthesis (the bad states of the specifications) and the sift after it are the slow part of
 building a planner (half a second on the demo station, more on large models) and depend only
-on the model's text.  The cache
-keeps, per model text, the BDD variable order and a checksum (JSON) and the bad states (CUDD's
-DDDMP format), keyed by a SHA-256 of the text, the `dd` version and this format's number.
-After a search has tuned the order (`TransitionPlanner.tuned`), `remember_order` replaces
-the saved order with the tuned one.
-Anything missing, unreadable or inconsistent falls back to synthesis; failing to write is not
-an error.
+on the model's text.  The cache keeps, per model text, the BDD variable order and checksums
+(JSON), the bad states (CUDD's DDDMP format) and the states bad for each specification alone
+(dd's JSON, which holds several named roots), keyed by a SHA-256 of the text, the `dd`
+version and this format's number.  Once the first plan has chosen the order for search
+(`TransitionPlanner.tuned`), `remember_order` saves that order instead.  Anything missing,
+unreadable or inconsistent falls back to synthesis; failing to write is not an error.
 """
 
 from __future__ import annotations
@@ -23,7 +22,7 @@ from planner.model import Model
 from planner.symbolic import Function, SymbolicModel
 from planner.transition_planner import TransitionPlanner
 
-FORMAT = 1
+FORMAT = 2  # 2: the states bad for each specification are saved too
 
 
 def default_directory() -> Path:
@@ -48,17 +47,25 @@ def planner(model: Model, text: str, engine: str, directory: Path | None) -> Tra
         return TransitionPlanner(model, engine)
     name = key(text)
     order_path, bad_path = directory / f"{name}.json", directory / f"{name}.dddmp"
-    if order_path.exists() and bad_path.exists():
+    specs_path = directory / f"{name}.specifications.json"
+    if order_path.exists() and bad_path.exists() and specs_path.exists():
         try:
             entry = json.loads(order_path.read_text())
             # CUDD's DDDMP reader crashes the process on a damaged file: check it first
             if hashlib.sha256(bad_path.read_bytes()).hexdigest() != entry["bad_sha256"]:
                 raise ValueError("the saved bad states do not match their checksum")
 
-            def restore(sym: SymbolicModel) -> Function:
+            if hashlib.sha256(specs_path.read_bytes()).hexdigest() != entry["specs_sha256"]:
+                raise ValueError("the saved closures do not match their checksum")
+
+            def restore(sym: SymbolicModel) -> tuple[Function, dict[str, Function]]:
                 sym.reorder(entry["order"])
                 (bad,) = sym.bdd.load(str(bad_path))
-                return bad
+                names = {s.name for s in model.specifications}
+                closures = sym.bdd.load(str(specs_path)) if names else {}
+                if not isinstance(closures, dict) or set(closures) != names:
+                    raise ValueError("the saved closures do not match the specifications")
+                return bad, closures
 
             restored = TransitionPlanner(model, engine, restore=restore)
             restored.tuned = bool(entry.get("tuned", False))
@@ -66,7 +73,7 @@ def planner(model: Model, text: str, engine: str, directory: Path | None) -> Tra
         except (OSError, ValueError, RuntimeError, KeyError, TypeError):
             pass  # a damaged entry: synthesise again and overwrite it
     built = TransitionPlanner(model, engine)
-    _save(built, directory, order_path, bad_path)
+    _save(built, directory, order_path, bad_path, specs_path)
     return built
 
 
@@ -89,15 +96,28 @@ def remember_order(planner: TransitionPlanner, text: str, directory: Path | None
         pass  # like saving: a read-only or damaged cache only costs the next run its time
 
 
-def _save(built: TransitionPlanner, directory: Path, order_path: Path, bad_path: Path) -> None:
+def _save(
+    built: TransitionPlanner, directory: Path, order_path: Path, bad_path: Path, specs_path: Path
+) -> None:
     try:
         directory.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryDirectory(dir=directory) as tmp:
             order_tmp, bad_tmp = Path(tmp) / "order.json", Path(tmp) / "bad.dddmp"
+            specs_tmp = Path(tmp) / "specifications.json"
             built.sym.bdd.dump(str(bad_tmp), [built.bad])
-            checksum = hashlib.sha256(bad_tmp.read_bytes()).hexdigest()
-            order_tmp.write_text(json.dumps({"order": built.order(), "bad_sha256": checksum}))
+            # few hundred nodes each: dd's JSON holds them all, named (DDDMP holds one root)
+            if built.bad_by_specification:
+                built.sym.bdd.dump(str(specs_tmp), dict(built.bad_by_specification))
+            else:
+                specs_tmp.write_text("{}")
+            entry = {
+                "order": built.order(),
+                "bad_sha256": hashlib.sha256(bad_tmp.read_bytes()).hexdigest(),
+                "specs_sha256": hashlib.sha256(specs_tmp.read_bytes()).hexdigest(),
+            }
+            order_tmp.write_text(json.dumps(entry))
             os.replace(bad_tmp, bad_path)  # the JSON last: its presence marks a whole entry
+            os.replace(specs_tmp, specs_path)
             os.replace(order_tmp, order_path)
     except (OSError, RuntimeError):
         pass  # a read-only home or a full disk only costs the next run its time

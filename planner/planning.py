@@ -26,9 +26,10 @@ class PlanQuery:
     transitions are removed for this query (timed-out effects, unavailable resources).
 
     `relaxed` names specifications dropped for forbidden-state recovery (seed 000 sec. 4.6):
-    the plan may pass through states that violate them, must satisfy the other invariants in
-    every state, and ends in a good state (every invariant holds and the supervisor can keep
-    it so); `goal` is conjoined with that.
+    the plan may pass through states that violate them, but never through a state that is
+    bad for any other specification (the supervisor of the others keeps holding while the
+    operator puts things right; those the start is already bad for are dropped too), and
+    ends in a good state (bad for none); `goal` is conjoined with that.
 
     With `fewest_maintenance` (and `maintenance`), a plan first has the fewest maintenance
     steps, then the fewest steps: a person is not asked to move a robot by hand that can

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from functools import cache
 
 from planner.expressions import Expr, Implies, Not, Or, conjuncts, variables_of
 from planner.model import UNCONTROLLABLE, Model, Transition
@@ -50,6 +51,7 @@ def allowed_conjuncts(forbidden: Expr) -> tuple[Expr, ...]:
     return (Not(forbidden),)
 
 
+@cache
 def reads(transition: Transition) -> frozenset[str]:
     """The variables a transition's guard and the sources of its actions read."""
     sources = {a.source for a in transition.actions if a.source is not None}

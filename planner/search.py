@@ -175,10 +175,16 @@ def _walk(
     used = 0
     names: list[str] = []
     written: frozenset[str] = frozenset()
+    readers: dict[str, list[int]] = {}
+    for k, t in enumerate(problem.transitions):
+        for name in _reads(t):
+            readers.setdefault(name, []).append(k)
     for goal in onward[1:]:
         automatic = state & problem.automatic != sym.false
-        following = [t for t in problem.transitions if _reads(t) & written]
-        for t in following + [t for t in problem.transitions if not _reads(t) & written]:
+        first = sorted({k for name in written for k in readers.get(name, ())})
+        chosen = set(first)
+        order = first + [k for k in range(len(problem.transitions)) if k not in chosen]
+        for t in (problem.transitions[k] for k in order):
             if automatic and t.kind is not TransitionKind.AUTOMATIC:
                 continue
             step = used + (t.name in problem.counted)

@@ -66,9 +66,14 @@ class SymbolicPlanner:
     name = "bdd"
 
     def __init__(
-        self, sym: SymbolicModel, bad: Function, reductions: Reductions = ALL_REDUCTIONS
+        self,
+        sym: SymbolicModel,
+        bad: Function,
+        bad_by_specification: Mapping[str, Function],
+        reductions: Reductions = ALL_REDUCTIONS,
     ) -> None:
         self.sym = sym
+        self.bad_by_specification = bad_by_specification
         self.reductions = reductions
         self.bad = bad
         self.tuned = False
@@ -79,6 +84,7 @@ class SymbolicPlanner:
         self._usable: dict[tuple[frozenset[str], bool], tuple[SymbolicTransition, ...]] = {}
         self._automatic: dict[frozenset[str], Function] = {}
         self._predicates: dict[Expr, Predicate] = {}
+        self._relaxed: dict[frozenset[str], Function] = {}
         self._symmetries: tuple[Symmetry, ...] | None = None
         self._swapper_cache: dict[tuple[str, frozenset[str]], Swapper] = {}
 
@@ -155,10 +161,7 @@ class SymbolicPlanner:
         sym = self.sym
         goal = sym.expr(query.goal)
         if query.relaxed:
-            allowed = sym.valid
-            for spec in self.model.specifications:
-                if spec.name not in query.relaxed:
-                    allowed &= sym.expr(spec.invariant)
+            allowed = self._good_without(self._relaxed_at(query))
             goal &= self.good
         else:
             allowed = self.good
@@ -173,6 +176,29 @@ class SymbolicPlanner:
             conjuncts(query.goal),
             bool(query.relaxed),
         )
+
+    def _relaxed_at(self, query: PlanQuery) -> frozenset[str]:
+        """The dropped specifications and those the start is already bad for: a recovery
+        cannot keep the supervisor of a specification the world can break from the start."""
+        bad = self.bad_by_specification
+        start = self.sym.state(query.start)
+        already = {name for name, states in bad.items() if states & start != self.sym.false}
+        return query.relaxed | already
+
+    def _good_without(self, relaxed: frozenset[str]) -> Function:
+        """The valid states not bad for any specification but the `relaxed` ones: where a
+        forbidden-state recovery may go, the supervisor of the others still holding."""
+        found = self._relaxed.get(relaxed)
+        if found is None:
+            bad = self.sym.false
+            for name, states in self.bad_by_specification.items():
+                if name not in relaxed:
+                    bad |= states
+            found = self.sym.valid & ~bad
+            if len(self._relaxed) > 64:
+                self._relaxed.clear()
+            self._relaxed[relaxed] = found
+        return found
 
     def holds(self, expr: Expr, state: State) -> bool:
         predicate = self._predicates.get(expr)

@@ -14,7 +14,7 @@ instead of walking the product of all cells (see `bad_states` for why this is ex
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
 from planner.cover import Cover
@@ -219,14 +219,30 @@ class BadPart:
     states: Function
 
 
-def bad_parts(sym: SymbolicModel) -> list[BadPart]:
-    """Each component's bad states, each specification closed on its own (see `bad_states`)."""
+def bad_parts(
+    sym: SymbolicModel, by_specification: Mapping[str, Function] | None = None
+) -> list[BadPart]:
+    """Each component's bad states, each specification closed on its own (see `bad_states`);
+    `by_specification` when `bad_by_specification` was already computed."""
+    if by_specification is None:
+        by_specification = bad_by_specification(sym)
     result: list[BadPart] = []
     for part in components(sym.model):
         if part.specifications:
-            close = _Closure(sym, part.transitions, valid_codes(sym, part.variables))
-            closed = [close(~sym.expr(spec.invariant)) for spec in part.specifications]
+            closed = [by_specification[spec.name] for spec in part.specifications]
             result.append(BadPart(part, _disjoin(sym, closed)))
+    return result
+
+
+def bad_by_specification(sym: SymbolicModel) -> dict[str, Function]:
+    """For each specification, the states bad for it alone: its violations closed over the
+    uncontrollable transitions of its component (the bad states are the union of these)."""
+    result: dict[str, Function] = {}
+    for part in components(sym.model):
+        if part.specifications:
+            close = _Closure(sym, part.transitions, valid_codes(sym, part.variables))
+            for spec in part.specifications:
+                result[spec.name] = close(~sym.expr(spec.invariant))
     return result
 
 
@@ -270,16 +286,12 @@ def _disjoin(sym: SymbolicModel, parts: Sequence[Function]) -> Function:
 
 def violated_by(sym: SymbolicModel, state: Function) -> list[str]:
     """Specifications the state is bad for, each on its own (the bad set is their union)."""
-    names: list[str] = []
-    for part in components(sym.model):
-        if not part.specifications:
-            continue
-        close = _Closure(sym, part.transitions, valid_codes(sym, part.variables))
-        for spec in part.specifications:
-            if close(~sym.expr(spec.invariant)) & state & sym.valid != sym.false:
-                names.append(spec.name)
-    order = {spec.name: k for k, spec in enumerate(sym.model.specifications)}
-    return sorted(names, key=order.__getitem__)
+    bad = bad_by_specification(sym)
+    return [
+        spec.name
+        for spec in sym.model.specifications
+        if spec.name in bad and bad[spec.name] & state & sym.valid != sym.false
+    ]
 
 
 # ---- automatic cycles --------------------------------------------------------------------------

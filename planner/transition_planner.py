@@ -23,6 +23,7 @@ from planner.symbolic_planner import ALL_REDUCTIONS, Reductions, SymbolicPlanner
 from planner.synthesis import (
     SupervisorGuard,
     automatic_cycle,
+    bad_by_specification,
     bad_parts,
     bad_states,
     supervisor_guards,
@@ -69,8 +70,9 @@ def _show(value: object) -> str:
     return str(value)
 
 
-Restore = Callable[[SymbolicModel], Function]
-"""Puts a saved variable order into a fresh encoding and returns the saved bad states."""
+Restore = Callable[[SymbolicModel], tuple[Function, dict[str, Function]]]
+"""Puts a saved variable order into a fresh encoding and returns the saved bad states, and
+the states bad for each specification alone."""
 
 
 class TransitionPlanner:
@@ -90,12 +92,13 @@ class TransitionPlanner:
         self.sym = SymbolicModel(model)
         check_dynamics(self.sym)
         if restore is None:
-            parts = bad_parts(self.sym)
+            self.bad_by_specification = bad_by_specification(self.sym)
+            parts = bad_parts(self.sym, self.bad_by_specification)
             self.bad = bad_states(self.sym, parts)
             sift(self.sym, parts)  # what synthesis leaves in the manager shapes the order
         else:
-            self.bad = restore(self.sym)
-        self._search = SymbolicPlanner(self.sym, self.bad, reductions)
+            self.bad, self.bad_by_specification = restore(self.sym)
+        self._search = SymbolicPlanner(self.sym, self.bad, self.bad_by_specification, reductions)
         # CUDD's own policy: it collects when dead nodes fill a share of the unique table.
         # Measured (README, "Garbage collection"): with collection off a long search keeps
         # every dead layer (B=6 R=2: 308 MB against 91 MB, and no faster), while a station's
@@ -112,6 +115,11 @@ class TransitionPlanner:
     @tuned.setter
     def tuned(self, value: bool) -> None:
         self._search.tuned = value
+
+    def prepare(self) -> None:
+        """Everything a first plan would do once before it searches (choosing the order
+        for search), so that a station can do it while it builds its planners."""
+        self._search.tune()
 
     def order(self) -> list[str]:
         """The current BDD variable order, for saving with the bad states."""

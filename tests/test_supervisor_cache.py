@@ -28,6 +28,11 @@ def plan(directory: Path | None) -> tuple[tuple[str, ...], int]:
     return result.plan, planner.sym.count(planner.bad)
 
 
+def entries(directory: Path) -> list[Path]:
+    """The entries' JSON files (the order and checksums), not the saved closures."""
+    return [p for p in directory.glob("*.json") if not p.name.endswith(".specifications.json")]
+
+
 def test_a_saved_supervisor_plans_exactly_like_a_fresh_one(tmp_path: Path) -> None:
     fresh = plan(None)
     assert plan(tmp_path) == fresh  # synthesised and saved
@@ -40,7 +45,7 @@ def test_a_damaged_entry_is_synthesised_again(tmp_path: Path) -> None:
     (entry,) = tmp_path.glob("*.dddmp")
     entry.write_bytes(entry.read_bytes()[:40])  # truncated: CUDD's reader would crash on it
     assert plan(tmp_path) == fresh
-    (saved,) = tmp_path.glob("*.json")
+    (saved,) = entries(tmp_path)
     saved.write_text('{"order": ["v0_0"], "bad_sha256": "0"}')
     assert plan(tmp_path) == fresh
     checksum = hashlib.sha256(entry.read_bytes()).hexdigest()
@@ -48,6 +53,23 @@ def test_a_damaged_entry_is_synthesised_again(tmp_path: Path) -> None:
     assert plan(tmp_path) == fresh
     saved.write_text("[")  # not JSON
     assert plan(tmp_path) == fresh
+    (closures,) = tmp_path.glob("*.specifications.json")
+    closures.write_text(closures.read_text().replace("1", "2"))  # fails its checksum
+    assert plan(tmp_path) == fresh
+
+
+def test_the_states_bad_for_each_specification_are_restored(tmp_path: Path) -> None:
+    """Forbidden-state recovery plans with them; a restored planner has the same sets."""
+    text = MINI.read_text()
+    station = load_station(text, str(MINI))
+    fresh = supervisor_cache.planner(station.model, text, "bdd", tmp_path)
+    restored = supervisor_cache.planner(station.model, text, "bdd", tmp_path)
+    assert set(restored.bad_by_specification) == {s.name for s in station.model.specifications}
+    for name, states in fresh.bad_by_specification.items():
+        assert restored.sym.count(restored.bad_by_specification[name]) == fresh.sym.count(states)
+        assert restored.sym.count(restored.bad_by_specification[name] & restored.bad) == (
+            fresh.sym.count(states)
+        )
 
 
 def test_a_file_in_place_of_the_directory_only_costs_time(tmp_path: Path) -> None:
@@ -81,7 +103,7 @@ def test_the_order_chosen_for_search_is_saved_and_plans_exactly_like_any_other(
     expected = [first.plan(q) for q in queries]
     assert all(r.found for r in expected) and first.tuned
     supervisor_cache.remember_order(first, text, tmp_path)
-    (saved,) = tmp_path.glob("*.json")
+    (saved,) = entries(tmp_path)
     entry = json.loads(saved.read_text())
     assert entry["tuned"] and entry["order"] == first.order()
 
