@@ -268,8 +268,11 @@ def scope_for(
     aliases: Mapping[str, str] | None = None,
 ) -> Scope:
     """Names known to an expression: variables, named predicates, and local aliases."""
-    names = [*domains, *(predicates or {}), *(aliases or {})]
-    return Scope(domains, predicates, lambda name: closest(name, names), aliases)
+
+    def suggest(name: str) -> str | None:  # only for a message: the names listed then
+        return closest(name, [*domains, *(predicates or {}), *(aliases or {})])
+
+    return Scope(domains, predicates, suggest, aliases)
 
 
 def _each(
@@ -479,7 +482,8 @@ def read_flat(reader: Reader, top: dict[str, tuple[yaml.Node, yaml.Node]]) -> Mo
     """Read the three section 8 lists into a checked `Model`."""
     variable_nodes = reader.sequence(top["variables"][1], "variables") if "variables" in top else []
     variables = list(_each(reader, variable_nodes, lambda n: read_variable(reader, n)))
-    reader.unique([(v.name, _node_at(variable_nodes, v.source)) for v in variables], "variable")
+    at = name_nodes(variable_nodes)
+    reader.unique([(v.name, at(v.source)) for v in variables], "variable")
     by_name = {v.name: v for v in variables}
     scope = scope_for({v.name: v.domain for v in variables})
 
@@ -489,9 +493,8 @@ def read_flat(reader: Reader, top: dict[str, tuple[yaml.Node, yaml.Node]]) -> Mo
     transitions = list(
         _each(reader, transition_nodes, lambda n: read_transition(reader, n, scope, by_name))
     )
-    reader.unique(
-        [(t.name, _node_at(transition_nodes, t.source)) for t in transitions], "transition"
-    )
+    at = name_nodes(transition_nodes)
+    reader.unique([(t.name, at(t.source)) for t in transitions], "transition")
 
     spec_nodes = (
         reader.sequence(top["specifications"][1], "specifications")
@@ -499,27 +502,28 @@ def read_flat(reader: Reader, top: dict[str, tuple[yaml.Node, yaml.Node]]) -> Mo
         else []
     )
     specifications = list(_each(reader, spec_nodes, lambda n: read_specification(reader, n, scope)))
-    reader.unique(
-        [(s.name, _node_at(spec_nodes, s.source)) for s in specifications], "specification"
-    )
+    at = name_nodes(spec_nodes)
+    reader.unique([(s.name, at(s.source)) for s in specifications], "specification")
     reader.raise_if_errors()
     return Model(tuple(variables), tuple(transitions), tuple(specifications), reader.file)
 
 
-def _node_at(nodes: list[yaml.Node], location: SourceLocation | None) -> yaml.Node:
-    """The node a located item was read from (for duplicate-name messages)."""
+def name_nodes(nodes: list[yaml.Node]) -> Callable[[SourceLocation | None], yaml.Node]:
+    """The node a located item was read from (for duplicate-name messages): its `name`
+    value, else the item's node, else the first node.  Indexed once by location, so that a
+    model of 10,000 items is not scanned 10,000 times."""
+    index: dict[tuple[int, int], yaml.Node] = {}
     for node in nodes:
-        if (
-            location
-            and node.start_mark.line + 1 == location.line
-            and (node.start_mark.column + 1 == location.column)
-        ):
-            fields = node.value if isinstance(node, yaml.MappingNode) else []
-            for key, value in fields:
-                if key.value == "name":
-                    return value  # type: ignore[no-any-return]
-            return node
-    return nodes[0]
+        fields = node.value if isinstance(node, yaml.MappingNode) else []
+        named = next((value for key, value in fields if key.value == "name"), node)
+        index.setdefault((node.start_mark.line + 1, node.start_mark.column + 1), named)
+
+    def at(location: SourceLocation | None) -> yaml.Node:
+        if location is not None and (location.line, location.column) in index:
+            return index[(location.line, location.column)]
+        return nodes[0]
+
+    return at
 
 
 def load_model(text: str, file: str = "<model>") -> Model:

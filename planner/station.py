@@ -30,7 +30,7 @@ from planner.expressions import (
 from planner.loading import (
     Reader,
     _each,
-    _node_at,
+    name_nodes,
     read_actions,
     read_flat,
     read_specification,
@@ -185,10 +185,12 @@ def read_station(reader: Reader, top: Fields) -> Station:
             v for n in nodes if (v := read_variable(reader, n, resource + ".")) is not None
         ]
     reader.unique([(r, f["name"][1]) for r, f in resource_fields], "resource")
-    reader.unique(
-        [(v.name, _variable_node(variable_nodes, resource_fields, v)) for v in variables],
-        "variable",
-    )
+    located = list(variable_nodes)
+    for _, fields in resource_fields:
+        if "variables" in fields and isinstance(fields["variables"][1], yaml.SequenceNode):
+            located += fields["variables"][1].value
+    at = name_nodes(located)
+    reader.unique([(v.name, at(v.source)) for v in variables], "variable")
     by_name = {v.name: v for v in variables}
     domains = {v.name: v.domain for v in variables}
 
@@ -198,9 +200,15 @@ def read_station(reader: Reader, top: Fields) -> Station:
     abilities: list[Ability] = []
     resources: list[Resource] = []
     restart: set[str] = set()
+    by_prefix: dict[str, list[str]] = {}  # "r1." -> the variables named r1.something
+    for v in variables:
+        parts = v.name.split(".")
+        for k in range(1, len(parts)):
+            by_prefix.setdefault(".".join(parts[:k]) + ".", []).append(v.name)
+    names = {t.name for t, _ in transitions}
     for resource, fields in resource_fields:
         prefix = resource + "."
-        aliases = {v.name[len(prefix) :]: v.name for v in variables if v.name.startswith(prefix)}
+        aliases = {name[len(prefix) :]: name for name in by_prefix.get(prefix, ())}
         own: list[str] = []
         ability_names: list[str] = []
         for node in (
@@ -214,7 +222,8 @@ def read_station(reader: Reader, top: Fields) -> Station:
                 for predicate, expr in ability.predicates.items():
                     predicates[f"{ability.qualified}.{predicate}"] = expr
                 for t, t_node in compiled:
-                    if t.name not in {x.name for x, _ in transitions}:
+                    if t.name not in names:
+                        names.add(t.name)
                         transitions.append((t, t_node))
                         own.append(t.name)
                 if ability.restart:
@@ -230,6 +239,7 @@ def read_station(reader: Reader, top: Fields) -> Station:
             if read is not None:
                 prefixed = replace(read, name=prefix + read.name)
                 transitions.append((prefixed, node))
+                names.add(prefixed.name)
                 own.append(prefixed.name)
         description = fields.get("description")
         resources.append(
@@ -258,9 +268,8 @@ def read_station(reader: Reader, top: Fields) -> Station:
     specifications: list[Specification] = list(
         _each(reader, spec_nodes, lambda n: read_specification(reader, n, scope))
     )
-    reader.unique(
-        [(s.name, _node_at(spec_nodes, s.source)) for s in specifications], "specification"
-    )
+    at = name_nodes(spec_nodes)
+    reader.unique([(s.name, at(s.source)) for s in specifications], "specification")
 
     # 4. operations, then intentions (which may name operations' predicates)
     operations: list[Operation] = []
@@ -313,16 +322,6 @@ def _name_node(node: yaml.Node) -> yaml.Node:
             if key.value == "name":
                 return value  # type: ignore[no-any-return]
     return node
-
-
-def _variable_node(
-    station_nodes: list[yaml.Node], resources: list[tuple[str, Fields]], variable: Variable
-) -> yaml.Node:
-    nodes = list(station_nodes)
-    for _, fields in resources:
-        if "variables" in fields and isinstance(fields["variables"][1], yaml.SequenceNode):
-            nodes += fields["variables"][1].value
-    return _node_at(nodes, variable.source)
 
 
 def _parameter(reader: Reader, fields: Fields, what: str) -> tuple[str, list[str]] | None:

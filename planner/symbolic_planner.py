@@ -18,7 +18,7 @@ from planner.model import TransitionKind
 from planner.planning import PlanQuery, PlanResult, PlanStatus, State
 from planner.relevance import Component, Structure, allowed_conjuncts, cone_of_influence
 from planner.search import Outcome, Problem, probe, search
-from planner.semantics import Predicate, Semantics, compile_expr
+from planner.semantics import CompiledTransition, Predicate, Semantics, compile_expr
 from planner.sifting import blocks as sifting_blocks
 from planner.symbolic import Function, SymbolicModel, SymbolicTransition
 from planner.symmetry import Swapper, Symmetry, find_symmetries, neighbours
@@ -84,6 +84,7 @@ class SymbolicPlanner:
         self._usable: dict[tuple[frozenset[str], bool], tuple[SymbolicTransition, ...]] = {}
         self._automatic: dict[frozenset[str], Function] = {}
         self._predicates: dict[Expr, Predicate] = {}
+        self._readers: dict[int, list[int]] | None = None
         self._relaxed: dict[frozenset[str], Function] = {}
         self._symmetries: tuple[Symmetry, ...] | None = None
         self._swapper_cache: dict[tuple[str, frozenset[str]], Swapper] = {}
@@ -230,7 +231,9 @@ class SymbolicPlanner:
         usable_names = frozenset(t.name for t in sets.usable)
         if self.reductions.parts:
             components = self.structure.components(usable_names, predicates)
-            active = [c for c in components if self._active(c, query, sets)]
+            active = self._active(components, query, sets, start)
+            if not active:  # every part of the goal that reads a variable holds: it is false
+                return self._unreachable(query, {"layers": 1})
         else:
             active = [Component(tuple(v.name for v in self.model.variables))]
         parts, found = self._plan_parts(query, sets, active)
@@ -239,36 +242,30 @@ class SymbolicPlanner:
             return self._unreachable(query, self._statistics(parts))
         return self._result(query, plan, parts, self._statistics(parts))
 
-    def _active(self, component: Component, query: PlanQuery, sets: _Sets) -> bool:
-        """Whether the component must move: its part of the goal does not hold at the start,
-        or one of its automatic transitions is enabled there (or, in forbidden-state
-        recovery, its part of the start is bad)."""
-        names = frozenset(component.variables)
-        start = query.start
+    def _active(
+        self, components: Sequence[Component], query: PlanQuery, sets: _Sets, start: Function
+    ) -> list[Component]:
+        """The components that must move: their part of the goal does not hold at the start,
+        or one of their automatic transitions is enabled there (or, in forbidden-state
+        recovery, the start is bad for one of their specifications)."""
+        where = {name: k for k, c in enumerate(components) for name in c.variables}
+        state = query.start
+        active: set[int] = set()
         for part in sets.goal_parts:
-            if variables_of(part) <= names and not self.holds(part, start):
-                return True
+            names = variables_of(part)
+            if names and not self.holds(part, state):
+                active.add(where[next(iter(names))])
         for t in sets.usable:
-            if (
-                t.kind is TransitionKind.AUTOMATIC
-                and t.transition.written & names
-                and self.semantics.by_name[t.name].guard(start)
-            ):
-                return True
+            automatic = t.kind is TransitionKind.AUTOMATIC and t.transition.written
+            if automatic and self.semantics.by_name[t.name].guard(state):
+                active.add(where[next(iter(t.transition.written))])
         if sets.joint:
-            return self._bad_at_start(component, start)
-        return False
-
-    def _bad_at_start(self, component: Component, start: State) -> bool:
-        """Whether the component's own part of the start is bad: then the bad set, with
-        this part fixed at its start values, holds for every valid rest of the state."""
-        sym = self.sym
-        index = self.model.variable_index
-        values = {name: start[index[name]] for name in component.variables}
-        assignment = _assignment(sym, values)
-        rest = sym.bdd.let(assignment, self.bad)
-        valid_rest = sym.bdd.let(assignment, sym.valid)
-        return bool(valid_rest & ~rest == sym.false)
+            for spec in self.model.specifications:
+                bad = self.bad_by_specification.get(spec.name)
+                names = variables_of(spec.invariant)
+                if names and bad is not None and bad & start != self.sym.false:
+                    active.add(where[next(iter(names))])
+        return [c for k, c in enumerate(components) if k in active]
 
     def _plan_parts(
         self, query: PlanQuery, sets: _Sets, active: list[Component]
@@ -514,6 +511,17 @@ class SymbolicPlanner:
             statistics=statistics,
         )
 
+    def _automatic_readers(self) -> dict[int, list[int]]:
+        """Variable index -> the automatic transitions (index in `semantics.automatic`)
+        whose guards read it."""
+        if self._readers is None:
+            index = self.model.variable_index
+            self._readers = {}
+            for k, a in enumerate(self.semantics.automatic):
+                for name in variables_of(a.transition.guard):
+                    self._readers.setdefault(index[name], []).append(k)
+        return self._readers
+
     def _replay(
         self, start: State, plan: Sequence[str], check: PlanQuery | None = None
     ) -> tuple[State, ...]:
@@ -521,16 +529,46 @@ class SymbolicPlanner:
         concrete semantics (a reduction that broke a plan fails loudly here)."""
         states = [start]
         state = start
+        semantics = self.semantics
+        automatic, readers = semantics.automatic, self._automatic_readers()
+        disabled = check.disabled if check is not None else frozenset()
+        usable = [a.name not in disabled for a in automatic]
+        enabled = {k for k, a in enumerate(automatic) if usable[k] and a.guard(state)}
         for name in plan:
+            step = semantics.by_name.get(name)
             if check is not None:
-                problem = self.semantics.step_allowed(
-                    state, name, maintenance=check.maintenance, disabled=check.disabled
-                )
+                problem = _not_possible(step, state, enabled, check)
                 if problem is not None:
                     raise AssertionError(f"planned step {name} is not possible: {problem}")
-            state = self.semantics.by_name[name].apply(state)
+            assert step is not None
+            after = step.apply(state)
+            if check is not None:  # only automatics reading what changed can change
+                changed = [i for i, (u, v) in enumerate(zip(state, after, strict=True)) if u != v]
+                for k in {k for i in changed for k in readers.get(i, ())}:
+                    if usable[k] and automatic[k].guard(after):
+                        enabled.add(k)
+                    else:
+                        enabled.discard(k)
+            state = after
             states.append(state)
         return tuple(states)
+
+
+def _not_possible(
+    step: CompiledTransition | None, state: State, automatic: set[int], query: PlanQuery
+) -> str | None:
+    """Why a planned step is not a step of the semantics (section 8), or None."""
+    if step is None:
+        return "there is no such transition"
+    if step.name in query.disabled:
+        return "it is disabled"
+    if step.kind is TransitionKind.MAINTENANCE and not query.maintenance:
+        return "maintenance is not allowed"
+    if not step.guard(state):
+        return "its guard does not hold"
+    if step.kind is not TransitionKind.AUTOMATIC and automatic:
+        return "an automatic transition is enabled and goes first"
+    return None
 
 
 def _lookups(sym: SymbolicModel) -> float:
