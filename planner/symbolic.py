@@ -47,6 +47,8 @@ def _import_cudd() -> Any:
 cudd = _import_cudd()
 
 Function = Any  # dd.cudd.Function: a BDD node
+MEMORY_TARGET = 192 * 2**20  # bytes
+CACHE_ENTRIES = 2**21  # CUDD's computed table, at most
 State = tuple[Value, ...]
 
 
@@ -161,7 +163,12 @@ class SymbolicModel:
 
     def __init__(self, model: Model) -> None:
         self.model = model
-        self.bdd = cudd.BDD()
+        # CUDD grows its tables up to the memory it is told of (dd's default: 1 GB) before it
+        # collects garbage instead; a target keeps a long search near it at a small cost in
+        # time (the demo's 95-step goal: 201 MB instead of 587 MB, as fast), and is no limit
+        # (a search that needs more live nodes gets them)
+        self.bdd = cudd.BDD(memory_estimate=MEMORY_TARGET)
+        self.bdd.configure(max_cache_hard=CACHE_ENTRIES)
         # Dynamic reordering fires on node-count thresholds that depend on the order `dd`
         # builds cubes in (hash-seed dependent), which would make plans vary between runs;
         # `sift` reorders at fixed points instead.
