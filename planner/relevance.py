@@ -31,10 +31,10 @@ their minimal length; the full states are recovered by replaying the plan.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable
 from dataclasses import dataclass
-from functools import cache
 
+from planner.coupling import Groups, touched
 from planner.expressions import Expr, Implies, Not, Or, conjuncts, variables_of
 from planner.model import UNCONTROLLABLE, Model, Transition
 
@@ -51,13 +51,6 @@ def allowed_conjuncts(forbidden: Expr) -> tuple[Expr, ...]:
     return (Not(forbidden),)
 
 
-@cache
-def reads(transition: Transition) -> frozenset[str]:
-    """The variables a transition's guard and the sources of its actions read."""
-    sources = {a.source for a in transition.actions if a.source is not None}
-    return variables_of(transition.guard) | sources
-
-
 @dataclass(frozen=True, slots=True)
 class Component:
     """Variables a query can plan apart from the rest (model order)."""
@@ -68,44 +61,32 @@ class Component:
 class Structure:
     """A model's coupling: what each transition touches and what the bad states tie together.
 
-    Built once per model.  `components` is then a union-find over the variables: cheap for
-    10,000 transitions, and cached per set of usable transitions, which a running station
-    asks about again and again.
+    Built once per model; the groups for a set of usable transitions are cached, as a
+    running station asks about the same few sets again and again, and each query only adds
+    its own predicates.
     """
 
     def __init__(self, model: Model) -> None:
         self.model = model
-        self.index = model.variable_index
-        self.touches: dict[str, tuple[int, ...]] = {}
-        for t in model.transitions:
-            names = reads(t) | t.written
-            self.touches[t.name] = tuple(sorted(self.index[n] for n in names))
         # the bad states are closed over every uncontrollable transition (disabled or not)
         # and derived from every specification: those tie their variables together
-        coupling: list[tuple[int, ...]] = [
-            self.touches[t.name] for t in model.transitions if t.kind in UNCONTROLLABLE
-        ]
-        coupling += [
-            tuple(sorted(self.index[n] for n in variables_of(s.invariant)))
-            for s in model.specifications
-        ]
-        self._coupling = coupling
-        self._cache: dict[frozenset[str], list[int]] = {}
+        self._coupling = Groups(v.name for v in model.variables)
+        for t in model.transitions:
+            if t.kind in UNCONTROLLABLE:
+                self._coupling.join(touched(t))
+        for spec in model.specifications:
+            self._coupling.join(variables_of(spec.invariant))
+        self._cache: dict[frozenset[str], Groups] = {}
 
-    def _base(self, usable: frozenset[str]) -> list[int]:
-        """Union-find parents for the usable transitions and the coupling, cached."""
+    def _base(self, usable: frozenset[str]) -> Groups:
         cached = self._cache.get(usable)
         if cached is None:
-            parent = list(range(len(self.model.variables)))
-            for edge in self._coupling:
-                _join(parent, edge)
+            cached = self._coupling.copy()
             for name in sorted(usable):
-                _join(parent, self.touches[name])
-            for i in range(len(parent)):
-                parent[i] = _find(parent, i)
+                cached.join(touched(self.model.transition(name)))
             if len(self._cache) > 64:  # a station asks a handful of shapes; bound it anyway
                 self._cache.clear()
-            self._cache[usable] = cached = parent
+            self._cache[usable] = cached
         return cached
 
     def components(
@@ -113,31 +94,10 @@ class Structure:
     ) -> tuple[Component, ...]:
         """The independent components, given the query's predicates (each one ties its
         variables together), in model order of their first variable."""
-        parent = list(self._base(usable))
+        groups = self._base(usable).copy()
         for predicate in predicates:
-            edge = tuple(self.index[n] for n in variables_of(predicate))
-            _join(parent, edge)
-        groups: dict[int, list[str]] = {}
-        for i, variable in enumerate(self.model.variables):
-            groups.setdefault(_find(parent, i), []).append(variable.name)
-        return tuple(Component(tuple(names)) for names in groups.values())
-
-
-def _find(parent: list[int], i: int) -> int:
-    while parent[i] != i:
-        parent[i] = parent[parent[i]]
-        i = parent[i]
-    return i
-
-
-def _join(parent: list[int], edge: Sequence[int]) -> None:
-    if not edge:
-        return
-    root = _find(parent, edge[0])
-    for i in edge[1:]:
-        other = _find(parent, i)
-        if other != root:
-            parent[other] = root
+            groups.join(variables_of(predicate))
+        return tuple(Component(tuple(names)) for names in groups.members().values())
 
 
 def cone_of_influence(

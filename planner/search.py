@@ -17,8 +17,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
+from planner.coupling import reads
 from planner.model import TransitionKind
-from planner.relevance import reads
 from planner.symbolic import Function, SymbolicModel, SymbolicTransition, cudd
 from planner.symmetry import Swapper, canonical, orbit
 

@@ -16,10 +16,11 @@ from __future__ import annotations
 from collections.abc import Iterable, Sequence
 from typing import Any
 
+from planner.coupling import Groups, touched
 from planner.expressions import Equals, SameValue, Value, variables_of
 from planner.model import Model
 from planner.symbolic import Function, SymbolicModel, cudd
-from planner.synthesis import BadPart, touched, valid_codes
+from planner.synthesis import BadPart, valid_codes
 
 SCRATCH_MEMORY = 64 * 2**20  # bytes: CUDD sizes its tables by it (dd's default is 1 GB)
 SCRATCH_CACHE = 2**12  # initial computed-table slots
@@ -27,24 +28,12 @@ SCRATCH_CACHE = 2**12  # initial computed-table slots
 
 def blocks(model: Model) -> list[list[str]]:
     """Variables tied together by any transition or specification, in model order."""
-    parent = {v.name: v.name for v in model.variables}
-
-    def find(name: str) -> str:
-        while parent[name] != name:
-            parent[name] = parent[parent[name]]
-            name = parent[name]
-        return name
-
-    edges = [touched(t) for t in model.transitions]
-    edges += [variables_of(s.invariant) for s in model.specifications]
-    for edge in edges:
-        roots = sorted({find(n) for n in edge}, key=model.variable_index.__getitem__)
-        for root in roots[1:]:
-            parent[root] = roots[0]
-    members: dict[str, list[str]] = {}
-    for v in model.variables:
-        members.setdefault(find(v.name), []).append(v.name)
-    return list(members.values())
+    groups = Groups(v.name for v in model.variables)
+    for t in model.transitions:
+        groups.join(touched(t))
+    for spec in model.specifications:
+        groups.join(variables_of(spec.invariant))
+    return list(groups.members().values())
 
 
 def sift(sym: SymbolicModel, bad: Sequence[BadPart]) -> None:

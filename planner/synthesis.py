@@ -17,6 +17,7 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
+from planner.coupling import Groups, touched
 from planner.cover import Cover
 from planner.expressions import (
     Equals,
@@ -25,7 +26,7 @@ from planner.expressions import (
     negation,
     variables_of,
 )
-from planner.model import Model, Specification, Transition, TransitionKind
+from planner.model import Model, Specification, TransitionKind
 from planner.symbolic import Function, SymbolicModel, SymbolicTransition
 
 
@@ -50,12 +51,6 @@ class Component:
     specifications: tuple[Specification, ...]
 
 
-def touched(t: Transition) -> frozenset[str]:
-    """The variables a transition reads (guard, copied sources) or writes."""
-    sources = {a.source for a in t.actions if a.source is not None}
-    return variables_of(t.guard) | t.written | sources
-
-
 def components(model: Model) -> tuple[Component, ...]:
     """The model's components, in the order of their first variables.
 
@@ -64,29 +59,16 @@ def components(model: Model) -> tuple[Component, ...]:
     and enabled, a cycle that loading rejects); a constant specification is collected in a
     last component without variables.
     """
-    parent = {v.name: v.name for v in model.variables}
-
-    def find(name: str) -> str:
-        while parent[name] != name:
-            parent[name] = parent[parent[name]]
-            name = parent[name]
-        return name
-
-    def join(names: Iterable[str]) -> None:
-        roots = sorted({find(n) for n in names}, key=model.variable_index.__getitem__)
-        for root in roots[1:]:
-            parent[root] = roots[0]
-
+    groups = Groups(v.name for v in model.variables)
     uncontrollable = [
         t for t in model.transitions if t.kind in (TransitionKind.AUTOMATIC, TransitionKind.EFFECT)
     ]
     for t in uncontrollable:
-        join(touched(t))
+        groups.join(touched(t))
     for spec in model.specifications:
-        join(variables_of(spec.invariant))
-    members: dict[str, list[str]] = {}
-    for v in model.variables:
-        members.setdefault(find(v.name), []).append(v.name)
+        groups.join(variables_of(spec.invariant))
+    members = groups.members()
+    find = groups.find
     steps: dict[str, list[str]] = {root: [] for root in members}
     for t in uncontrollable:
         read_or_written = touched(t)
