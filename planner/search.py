@@ -60,20 +60,33 @@ CANONICAL_ROUNDS = 3
 
 
 def search(sym: SymbolicModel, problem: Problem) -> Outcome:
-    """Breadth-first from the start; the first layer meeting the goal gives the plan."""
+    """Breadth-first from the start; the first layer meeting the goal gives the plan.
+
+    With counted steps, the plan with the fewest of them, then the fewest steps: a hit
+    with j counted steps is kept until every layer with fewer has died out (those layers
+    grow only from themselves), or one with fewer is found.
+    """
     budget = problem.budget
     plain = tuple(t for t in problem.transitions if t.name not in problem.counted)
     counted = tuple(t for t in problem.transitions if t.name in problem.counted)
     false = sym.false
     layers: list[Layer] = [[problem.start] + [false] * budget]
     seen = [problem.start] * (budget + 1)  # seen[j]: reached with at most j counted steps
+    best: tuple[int, int, Function] | None = None  # counted steps, depth, goal states
     while True:
         depth = len(layers) - 1
         for j, states in enumerate(layers[-1]):
+            if best is not None and j >= best[0]:
+                break
             hit = states & problem.goal
             if hit != false:
-                plan = _walk(sym, problem, layers, j, hit)
-                return Outcome(True, plan, len(layers), seen[-1])
+                best = (j, depth, hit)
+                break
+        lower_died = best is not None and all(f == false for f in layers[-1][: best[0]])
+        if best is not None and (lower_died or depth >= problem.max_steps):
+            count, at, hit = best
+            plan = _walk(sym, problem, layers[: at + 1], count, hit)
+            return Outcome(True, plan, at + 1, seen[-1])
         if depth >= problem.max_steps:
             break
         sources = [
@@ -94,6 +107,9 @@ def search(sym: SymbolicModel, problem: Problem) -> Outcome:
             for k in range(j, budget + 1):
                 seen[k] |= found
         if all(f == false for f in frontier):
+            if best is not None:
+                layers.append(frontier)  # the lower counts died out too: take the hit
+                continue
             break  # fixpoint: the goal is unreachable at any length
         layers.append(frontier)
     # a larger budget reaches more only through a counted step out of the last count

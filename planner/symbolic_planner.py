@@ -358,7 +358,7 @@ class SymbolicPlanner:
             t.name for t in problem.transitions if t.kind is TransitionKind.MAINTENANCE
         )
         layers = 0
-        for budget in range(query.max_steps + 1):
+        for budget in range(1, query.max_steps + 1):  # one 2-D search finds 0 or 1 step
             outcome = search(self.sym, replace(problem, counted=counted, budget=budget))
             layers += outcome.layers
             if outcome.found or outcome.exhausted:
