@@ -31,9 +31,10 @@ class PlanQuery:
     operator puts things right; those the start is already bad for are dropped too), and
     ends in a good state (bad for none); `goal` is conjoined with that.
 
-    With `fewest_maintenance` (and `maintenance`), a plan first has the fewest maintenance
-    steps, then the fewest steps: a person is not asked to move a robot by hand that can
-    move itself in one step more.
+    With `maintenance_cost` c > 1 (and `maintenance`), a plan has the least cost instead of
+    the fewest steps, a maintenance step costing c and every other step 1 (ties: the fewer
+    maintenance steps): a person is not asked to move a robot by hand that can move itself
+    in a few steps more.  The default 1 is section 8's minimal plan.
     """
 
     start: State
@@ -44,7 +45,7 @@ class PlanQuery:
     always: Expr | None = None
     disabled: frozenset[str] = frozenset()
     relaxed: frozenset[str] = frozenset()
-    fewest_maintenance: bool = False
+    maintenance_cost: int = 1
 
 
 @dataclass(frozen=True)

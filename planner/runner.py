@@ -54,6 +54,10 @@ from planner.semantics import Semantics, State, compile_expr
 from planner.station import Station, effect_as_goal
 from planner.transition_planner import TransitionPlanner
 
+# a maintenance step (a person's work, planned in recovery) weighs as much as this many of
+# the station's own steps: a robot that can move itself is not moved by hand
+MAINTENANCE_COST = 10
+
 Stopwatch = Callable[[], float]
 
 
@@ -1007,7 +1011,7 @@ class _Tick:
             maintenance=maintenance,
             forbidden=() if maintenance else self.forbidden(executing),
             disabled=frozenset(self.disabled()),
-            fewest_maintenance=maintenance,
+            maintenance_cost=MAINTENANCE_COST if maintenance else 1,
         )
 
     def plan_transitions(self, executing: list[str], goal: Expr, reason: str) -> bool:

@@ -27,9 +27,10 @@ from planner.symmetry import Swapper, canonical, orbit
 class Problem:
     """One breadth-first search: every set is over the bits of `variables` alone.
 
-    Steps of the `counted` transitions (maintenance, when a query minimises the work it
-    asks of people) may be taken at most `budget` times, and the layers are kept apart by
-    how many were taken, so that a state reached with fewer counts as reached first.
+    Steps of the `counted` transitions (maintenance, when a query weighs the work it asks
+    of people) cost `cost` each instead of 1 and may be taken at most `budget` times; the
+    layers are kept apart by how many were taken, so that a state reached with fewer counts
+    as reached first.
     """
 
     start: Function
@@ -42,6 +43,7 @@ class Problem:
     max_steps: int
     counted: frozenset[str] = frozenset()
     budget: int = 0
+    cost: int = 1
     symmetries: tuple[Swapper, ...] = ()  # swaps of interchangeable objects the query keeps
 
 
@@ -62,9 +64,10 @@ CANONICAL_ROUNDS = 3
 def search(sym: SymbolicModel, problem: Problem) -> Outcome:
     """Breadth-first from the start; the first layer meeting the goal gives the plan.
 
-    With counted steps, the plan with the fewest of them, then the fewest steps: a hit
-    with j counted steps is kept until every layer with fewer has died out (those layers
-    grow only from themselves), or one with fewer is found.
+    With counted steps, the plan of least cost (ties: fewer counted steps): a hit found at
+    depth k with j counted steps costs k + (cost - 1) j, and is kept until no layer with
+    fewer counted steps can still reach the goal as cheaply (those layers grow only from
+    themselves, one step deeper per layer).
     """
     budget = problem.budget
     plain = tuple(t for t in problem.transitions if t.name not in problem.counted)
@@ -72,21 +75,26 @@ def search(sym: SymbolicModel, problem: Problem) -> Outcome:
     false = sym.false
     layers: list[Layer] = [[problem.start] + [false] * budget]
     seen = [problem.start] * (budget + 1)  # seen[j]: reached with at most j counted steps
-    best: tuple[int, int, Function] | None = None  # counted steps, depth, goal states
+    extra = problem.cost - 1
+    best: tuple[int, int, int, Function] | None = None  # cost, counted steps, depth, states
     while True:
         depth = len(layers) - 1
         for j, states in enumerate(layers[-1]):
-            if best is not None and j >= best[0]:
-                break
+            if best is not None and (depth + extra * j, j) >= best[:2]:
+                continue
             hit = states & problem.goal
             if hit != false:
-                best = (j, depth, hit)
-                break
-        lower_died = best is not None and all(f == false for f in layers[-1][: best[0]])
-        if best is not None and (lower_died or depth >= problem.max_steps):
-            count, at, hit = best
-            plan = _walk(sym, problem, layers[: at + 1], count, hit)
-            return Outcome(True, plan, at + 1, seen[-1])
+                best = (depth + extra * j, j, depth, hit)
+        if best is not None:
+            cost, count = best[:2]
+            hopeless = all(  # a layer with fewer counted steps cannot do better any more
+                states == false or depth + 1 + extra * j > cost
+                for j, states in enumerate(layers[-1][:count])
+            )
+            if hopeless or depth >= problem.max_steps:
+                at, hit = best[2:]
+                plan = _walk(sym, problem, layers[: at + 1], count, hit)
+                return Outcome(True, plan, at + 1, seen[-1])
         if depth >= problem.max_steps:
             break
         sources = [

@@ -351,15 +351,16 @@ class SymbolicPlanner:
         self, query: PlanQuery, sets: _Sets, variables: frozenset[str], goal: Function
     ) -> _Part:
         problem = self.problem(query, sets, variables, goal)
-        if not (query.maintenance and query.fewest_maintenance):
+        if not (query.maintenance and query.maintenance_cost > 1):
             outcome = search(self.sym, problem)
             return _Part(variables, outcome.plan, outcome, problem.variables)
         counted = frozenset(
             t.name for t in problem.transitions if t.kind is TransitionKind.MAINTENANCE
         )
         layers = 0
-        for budget in range(1, query.max_steps + 1):  # one 2-D search finds 0 or 1 step
-            outcome = search(self.sym, replace(problem, counted=counted, budget=budget))
+        for budget in range(1, query.max_steps + 1):  # most plans need one, or none
+            weighted = replace(problem, counted=counted, budget=budget, cost=query.maintenance_cost)
+            outcome = search(self.sym, weighted)
             layers += outcome.layers
             if outcome.found or outcome.exhausted:
                 break
