@@ -1,0 +1,469 @@
+"""Every engine and every reduction against the brute-force oracle (issue 11, point 2).
+
+The bdd engine plans a query part by part (`Reductions.parts`: independent components,
+frozen when untouched, concatenated in an order that keeps the sum minimal, or planned
+jointly when no such order exists), on each part's cone of influence (`cone`), and with
+`symmetry` on one state per orbit of interchangeable objects.  Each reduction is exact, so
+every combination must give the oracle's status and minimal length and a legal plan; and
+each must actually happen where the model's structure says it must.
+
+`Expected` below is an independent reading of `planner.relevance`'s docstring: the
+components are computed here from the model and the query alone, each active component is
+planned by the oracle on its own sub-model, and from those plans it follows how many parts
+the engine reports and how many bits it searches.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import pytest
+import yaml
+from hypothesis import HealthCheck, given, settings
+from hypothesis import event as record_event
+from hypothesis import note as record_note
+from hypothesis import strategies as st
+from hypothesis.control import currently_in_test_context
+
+from planner.expressions import parse_expr
+from planner.loading import ModelError, load_model, scope_for
+from planner.model import Model, TransitionKind
+from planner.planning import PlanQuery, PlanResult, PlanStatus
+from planner.symbolic_planner import Reductions
+from planner.transition_planner import TransitionPlanner
+
+if TYPE_CHECKING:
+    from tests import oracle as O
+    from tests import strategies_structured as SS
+    from tests.reductions_oracle import (
+        UNCONTROLLABLE,
+        Expected,
+        bits_of,
+        expected_structure,
+        touches,
+    )
+else:
+    try:
+        from tests import oracle as O
+        from tests import strategies_structured as SS
+        from tests.reductions_oracle import (
+            UNCONTROLLABLE,
+            Expected,
+            bits_of,
+            expected_structure,
+            touches,
+        )
+    except ImportError:  # no tests/__init__.py: pytest put tests/ itself on sys.path
+        import oracle as O
+        import strategies_structured as SS
+        from reductions_oracle import (
+            UNCONTROLLABLE,
+            Expected,
+            bits_of,
+            expected_structure,
+            touches,
+        )
+
+REDUCTIONS = {
+    "default": Reductions(),
+    "no parts": Reductions(parts=False),
+    "no cone": Reductions(cone=False),
+    "symmetry": Reductions(symmetry=True),
+    "none": Reductions(parts=False, cone=False),
+}
+
+SETTINGS = settings(
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+)
+QUERIES_PER_MODEL = 3  # the planners are built once per model: ask each several queries
+
+
+def event(text: str) -> None:
+    """Coverage for `--hypothesis-show-statistics`; the hand-made examples share the
+    checks, outside any hypothesis test."""
+    if currently_in_test_context():
+        record_event(text)
+
+
+def note(text: str) -> None:
+    if currently_in_test_context():
+        record_note(text)
+
+
+# --------------------------------------------------------------------------- the case
+
+
+@dataclass
+class Case:
+    """A model as the planners and the oracle read it, with one planner per reduction."""
+
+    spec: dict[str, Any]
+    model: Model
+    oracle: O.OracleModel
+    planners: dict[str, TransitionPlanner]
+
+    def query(self, q: dict[str, Any]) -> PlanQuery:
+        scope = scope_for(self.model.domains)
+        return PlanQuery(
+            start=tuple(q["start"][v.name] for v in self.model.variables),
+            goal=parse_expr(q["goal"], scope),
+            max_steps=q["max_steps"],
+            maintenance=q["maintenance"],
+            forbidden=tuple(parse_expr(f, scope) for f in q["forbidden"]),
+            always=parse_expr(q["phi"], scope) if q["phi"] is not None else None,
+            disabled=frozenset(q["disabled"]),
+            relaxed=frozenset(q.get("relaxed", ())),
+            fewest_maintenance=q.get("fewest_maintenance", False),
+        )
+
+
+def oracle_options(q: dict[str, Any]) -> dict[str, Any]:
+    return {
+        "maintenance": q["maintenance"],
+        "forbidden": tuple(q["forbidden"]),
+        "phi": q["phi"],
+        "disabled": frozenset(q["disabled"]),
+        "relaxed": frozenset(q.get("relaxed", ())),
+    }
+
+
+def make_case(spec: dict[str, Any]) -> Case | None:
+    """The case, or None after checking that planner and oracle agree on a cycle."""
+    oracle = O.parse_model(spec)
+    model = load_model(yaml.safe_dump(spec, sort_keys=False), "structured.yaml")
+    if O.has_automatic_cycle(oracle):
+        with pytest.raises(ModelError, match="cycle forever"):
+            TransitionPlanner(model)
+        event("model: automatic cycle (rejected by both)")
+        return None
+    planners = {name: TransitionPlanner(model, reductions=r) for name, r in REDUCTIONS.items()}
+    return Case(spec, model, oracle, planners)
+
+
+def visited(case: Case, start: O.State, plan: Iterable[str], q: dict[str, Any]) -> list[O.State]:
+    """The states a plan visits, by the oracle's steps."""
+    states = [start]
+    for name in plan:
+        possible = dict(
+            O.steps(
+                case.oracle,
+                states[-1],
+                maintenance=q["maintenance"],
+                disabled=frozenset(q["disabled"]),
+            )
+        )
+        states.append(possible[name])
+    return states
+
+
+def check_result(
+    case: Case, q: dict[str, Any], result: PlanResult, expected: O.OracleResult, label: str
+) -> None:
+    """Status, minimal length, a legal replay and the visited states; for bad starts the
+    violated list."""
+    query = case.query(q)
+    options = oracle_options(q)
+    assert result.status.value == expected.status, label
+    if result.status is PlanStatus.FOUND:
+        assert result.length == expected.length, label
+        problem = O.replay(case.oracle, query.start, list(result.plan), q["goal"], **options)
+        assert problem is None, f"{label}: {problem}"
+        assert result.states[0] == query.start, label
+        assert len(result.states) == result.length + 1, label
+        assert list(result.states) == visited(case, query.start, result.plan, q), label
+        if expected.maintenance_steps is not None:
+            steps = O.maintenance_steps(case.oracle, list(result.plan))
+            assert steps == expected.maintenance_steps, label
+    elif result.status is PlanStatus.BAD_START:
+        if query.relaxed:
+            # why recovery cannot start: a kept specification violated directly, or a
+            # forbidden predicate; the planner lists every specification the start is bad
+            # for (the relaxed ones too), which must include those
+            names = set(O.violated(case.oracle, query.start))
+            names |= {f"forbidden[{i}]" for i in range(len(q["forbidden"]))}
+            assert set(expected.violated) <= set(result.violated) <= names, label
+        else:
+            assert list(result.violated) == expected.violated, label
+
+
+# --------------------------------------------------------------------------- the structure
+
+
+def structure(case: Case, q: dict[str, Any]) -> Expected:
+    return expected_structure(case.model, case.oracle, case.query(q))
+
+
+def check_structure(case: Case, q: dict[str, Any], results: dict[str, PlanResult]) -> Expected:
+    """The reductions happen where the structure says they must."""
+    model = case.model
+    expected = structure(case, q)
+    total = bits_of(model, [v.name for v in model.variables])
+    event(f"components: {len(expected.components)}, active: {len(expected.active)}")
+    if not expected.searches:
+        return expected
+    if len(expected.active) < len(expected.components):
+        event("parts: a component is frozen")
+    if expected.busy:
+        event("parts: an automatic is enabled at the start of an active part")
+    if expected.fallback:
+        event("parts: joint fallback (no order keeps the sum minimal)")
+    elif expected.parts > 1:
+        event("parts: concatenated in order")
+    if expected.unsettled and not expected.fallback:
+        event("parts: one part ends with an automatic enabled (planned last)")
+    note(f"expected structure: {expected}")
+    for name, result in results.items():
+        statistics = result.statistics
+        reductions = REDUCTIONS[name]
+        if not reductions.parts:
+            assert statistics["parts"] == 1, name
+            assert statistics["searched_bits"] <= total, name
+            if not reductions.cone:
+                assert statistics["searched_bits"] == total, name
+            continue
+        assert statistics["parts"] == expected.parts, name
+        if reductions.cone:
+            assert statistics["searched_bits"] <= expected.bits, name
+        else:
+            assert statistics["searched_bits"] == expected.bits, name
+    default = results["default"].statistics["searched_bits"]
+    if default < expected.bits:
+        event("cone: dropped bits of an active part")
+    if default < total:
+        event("searched fewer bits than the model has")
+    lengths = expected.lengths
+    if expected.parts > 1 and None not in lengths and not q.get("fewest_maintenance"):
+        # the theorem the parts reduction rests on: the sum of the parts is the minimum
+        total_length = sum(n for n in lengths if n is not None)
+        whole = results["none"]
+        if total_length <= q["max_steps"]:
+            assert whole.found and whole.length == total_length
+        else:
+            assert not whole.found
+    return expected
+
+
+def plan_everywhere(case: Case, q: dict[str, Any]) -> dict[str, PlanResult]:
+    """The query on every reduction (and, when the query allows, on the sat engine),
+    each checked against the oracle."""
+    query = case.query(q)
+    options = oracle_options(q)
+    expected = O.plan(
+        case.oracle,
+        query.start,
+        q["goal"],
+        max_steps=query.max_steps,
+        fewest_maintenance=query.fewest_maintenance,
+        **options,
+    )
+    event(f"oracle: {expected.status}" + (" in 0 steps" if expected.length == 0 else ""))
+    results = {}
+    for name, planner in case.planners.items():
+        results[name] = result = planner.plan(query)
+        check_result(case, q, result, expected, name)
+    if not query.relaxed and not query.fewest_maintenance:  # sat: no such queries
+        result = case.planners["default"].plan(query, engine="sat")
+        check_result(case, q, result, expected, "sat")
+    if expected.status == "found" and expected.length and results["default"].found:
+        final = results["default"].states[-1]
+        if any(t.kind == "automatic" and t.enabled(final) for t in case.oracle.transitions):
+            event("plan: ends where an automatic is enabled")
+    return results
+
+
+def example(text: str) -> Case:
+    case = make_case(yaml.safe_load(text))
+    assert case is not None
+    return case
+
+
+def ask(case: Case, goal: str, start: dict[str, Any] | None = None, **extra: Any) -> dict[str, Any]:
+    """A query dict with the defaults, from the initial state unless `start` says more."""
+    values = {v.name: v.initial for v in case.model.variables} | (start or {})
+    return {
+        "start": values,
+        "goal": goal,
+        "maintenance": False,
+        "forbidden": [],
+        "phi": None,
+        "disabled": [],
+        "max_steps": 12,
+    } | extra
+
+
+# --------------------------------------------------------------------------- independent components
+
+
+@settings(SETTINGS, max_examples=100)
+@given(data=st.data())
+def test_component_models_plan_like_the_oracle_under_every_reduction(
+    data: st.DataObject,
+) -> None:
+    structured = data.draw(SS.component_models())
+    case = make_case(structured.model)
+    if case is None:
+        return
+    for _ in range(QUERIES_PER_MODEL):
+        q = data.draw(SS.component_queries(structured))
+        results = plan_everywhere(case, q)
+        check_structure(case, q, results)
+        _bridge_events(case, q, structured)
+
+
+def _bridge_events(case: Case, q: dict[str, Any], structured: SS.Structured) -> None:
+    """Bridges of uncontrollable kinds always join their parts; the others only when the
+    query may use them."""
+    query = case.query(q)
+    expected = structure(case, q)
+    for name in structured.bridges:
+        t = case.model.transition(name)
+        joined = any(touches(t) <= c for c in expected.components)
+        assert joined or t.kind not in UNCONTROLLABLE
+        usable = name not in query.disabled and (
+            query.maintenance or t.kind is not TransitionKind.MAINTENANCE
+        )
+        if t.kind in UNCONTROLLABLE or usable:
+            assert joined, name
+            event(f"bridge: {t.kind.value} joins two parts")
+        else:
+            event("bridge: unusable, parts stay apart")
+
+
+# Two robots a and b that share nothing; each `start` leaves an automatic `settle` to run.
+TWO_ROBOTS = """
+variables:
+  - {name: a.pos, domain: [home, mid, bp]}
+  - {name: a.busy, domain: bool}
+  - {name: b.pos, domain: [home, mid, bp]}
+  - {name: b.busy, domain: bool}
+transitions:
+  - {name: a.start, guard: "a.pos == home && !a.busy", actions: ["a.pos := mid", "a.busy := true"]}
+  - {name: a.settle, kind: automatic, guard: a.busy, actions: ["a.busy := false"]}
+  - {name: a.arrive, guard: "a.pos == mid", actions: ["a.pos := bp"]}
+  - {name: b.start, guard: "b.pos == home && !b.busy", actions: ["b.pos := mid", "b.busy := true"]}
+  - {name: b.settle, kind: automatic, guard: b.busy, actions: ["b.busy := false"]}
+  - {name: b.arrive, guard: "b.pos == mid", actions: ["b.pos := bp"]}
+"""
+
+
+def test_a_component_the_goal_does_not_touch_is_frozen() -> None:
+    case = example(TWO_ROBOTS)
+    q = ask(case, "a.pos == bp")
+    results = plan_everywhere(case, q)
+    expected = check_structure(case, q, results)
+    assert len(expected.components) == 2 and len(expected.active) == 1
+    assert results["default"].plan == ("a.start", "a.settle", "a.arrive")
+    assert results["default"].statistics["parts"] == 1
+    assert results["default"].statistics["searched_bits"] == 3 < 6
+    assert results["none"].statistics["searched_bits"] == 6
+
+
+def test_parts_are_concatenated_the_busy_one_first() -> None:
+    """b's automatic is enabled at the start: b must move first, though a comes first
+    in the model; the parts' sum is the minimum."""
+    case = example(TWO_ROBOTS)
+    q = ask(case, "a.pos == mid && b.pos == bp", {"b.pos": "mid", "b.busy": True})
+    results = plan_everywhere(case, q)
+    expected = check_structure(case, q, results)
+    assert expected.parts == 2 and expected.busy == (frozenset({"b.pos", "b.busy"}),)
+    assert results["default"].plan == ("b.settle", "b.arrive", "a.start")
+    assert results["default"].statistics["parts"] == 2
+
+
+def test_a_part_that_ends_with_an_automatic_enabled_goes_last() -> None:
+    case = example(TWO_ROBOTS)
+    q = ask(case, "a.pos == mid && b.pos == bp", {"b.pos": "mid"})
+    results = plan_everywhere(case, q)
+    expected = check_structure(case, q, results)
+    assert expected.unsettled == (frozenset({"a.pos", "a.busy"}),)
+    assert results["default"].plan == ("b.arrive", "a.start")
+    assert results["default"].statistics["parts"] == 2
+
+
+def test_a_part_whose_start_has_an_automatic_enabled_is_active_though_its_goal_holds() -> None:
+    """b's goal part holds, but its `settle` is enabled at the start and goes before any
+    controlled step of a: b cannot be frozen."""
+    case = example(TWO_ROBOTS)
+    q = ask(case, "a.pos == mid && b.pos == home", {"b.busy": True})
+    results = plan_everywhere(case, q)
+    expected = check_structure(case, q, results)
+    assert expected.active == expected.components and expected.busy == (expected.active[1],)
+    assert results["default"].plan == ("b.settle", "a.start")
+
+
+@pytest.mark.parametrize(
+    ("goal", "start", "extra"),
+    [
+        # both end with `settle` enabled: one must settle before the other starts
+        ("a.pos == mid && b.pos == mid", {}, 1),
+        # both start busy: their automatics run first, together, at no extra cost
+        ("a.pos == bp && b.pos == bp", {"a.pos": "mid", "a.busy": True, "b.busy": True}, 0),
+    ],
+    ids=["both end busy", "both start busy"],
+)
+def test_parts_no_order_can_concatenate_are_planned_jointly(
+    goal: str, start: dict[str, Any], extra: int
+) -> None:
+    case = example(TWO_ROBOTS)
+    q = ask(case, goal, start)
+    results = plan_everywhere(case, q)
+    expected = check_structure(case, q, results)
+    assert expected.fallback
+    assert results["default"].statistics["parts"] == 1
+    assert results["default"].statistics["searched_bits"] == 6
+    assert sum(n for n in expected.lengths if n is not None) + extra == results["default"].length
+
+
+def test_a_part_is_replanned_to_end_calm_when_that_costs_no_step() -> None:
+    """`a.rush` (first in the model) leaves `settle` enabled; `a.walk` reaches mid as
+    fast and calm, so a goes first and b (which cannot end calm) last."""
+    text = TWO_ROBOTS.replace(
+        "  - {name: a.start,",
+        '  - {name: a.rush, guard: "a.pos == home", actions: ["a.pos := mid", "a.busy := true"]}\n'
+        '  - {name: a.walk, guard: "a.pos == home", actions: ["a.pos := mid"]}\n'
+        "  - {name: a.start,",
+    )
+    case = example(text)
+    q = ask(case, "a.pos == mid && b.pos == mid")
+    results = plan_everywhere(case, q)
+    expected = check_structure(case, q, results)
+    assert expected.unsettled == (frozenset({"b.pos", "b.busy"}),)
+    assert results["default"].plan == ("a.walk", "b.start")
+    assert results["default"].statistics["parts"] == 2
+
+
+BRIDGED = """
+variables:
+  - {name: door, domain: bool}
+  - {name: lamp, domain: bool}
+  - {name: fan, domain: bool}
+transitions:
+  - {name: door.push, guard: "!door", actions: ["door := true"]}
+  - {name: lamp.switch, guard: "!lamp", actions: ["lamp := true"]}
+  - {name: fan.switch, guard: "!fan", actions: ["fan := true"]}
+  - {name: lamp.auto, kind: automatic, guard: "door && !lamp", actions: ["lamp := true"]}
+  - {name: fan.by_hand, kind: maintenance, guard: "lamp && !fan", actions: ["fan := true"]}
+"""
+
+
+@pytest.mark.parametrize(
+    ("extra", "parts"),
+    [
+        ({}, 2),  # the automatic ties door and light; the fan is apart
+        ({"maintenance": True}, 1),  # by hand, the fan follows the light
+        ({"maintenance": True, "disabled": ["fan.by_hand"]}, 2),
+    ],
+)
+def test_automatics_and_usable_steps_that_read_two_parts_join_them(
+    extra: dict[str, Any], parts: int
+) -> None:
+    case = example(BRIDGED)
+    q = ask(case, "door && lamp && fan", **extra)
+    results = plan_everywhere(case, q)
+    expected = check_structure(case, q, results)
+    assert frozenset({"door", "lamp"}) <= expected.components[0]
+    assert len(expected.components) == parts
+    assert results["default"].statistics["parts"] == parts
