@@ -1,13 +1,15 @@
 """What the bdd engine's reductions must do for a query, read independently of `planner/`.
 
 `tests/oracle.py` says what a plan must be (section 8); this module says how the exact
-reductions must get there, from the docstring of `planner.relevance` alone, by brute
-force where it matters:
+reductions must get there, from the docstrings of `planner.relevance` and
+`planner.symmetry` alone, by brute force where it matters:
 
 - `expected_structure`: the independent components of a query by union-find over what
   ties variables together, which of them must move (*active*), and, with each active one
   planned by the oracle on its own sub-model, how many parts the engine reports and how
-  many bits it searches (the concatenation in order, or the joint fallback).
+  many bits it searches (the concatenation in order, or the joint fallback);
+- `explicit_swap`: whether swapping two numbered tokens is an automorphism of the model,
+  checked on every state.
 
 It reads the model through `planner.model` and `planner.expressions` (parsing is tested
 elsewhere) and nothing of the reductions themselves.
@@ -15,6 +17,7 @@ elsewhere) and nothing of the reductions themselves.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -240,3 +243,58 @@ def _alone(
     ]
     calm = O.plan(m, start, " && ".join([*goal, *phi, *automatic]) or "true", **options)
     return alone.length, calm.length
+
+
+# --------------------------------------------------------------------------- swaps
+
+
+def rename(name: str, first: str, second: str) -> str:
+    """Swap two tokens wherever they are a whole part of a dotted/underscored name."""
+    swapped = {first: second, second: first}
+    return "".join(swapped.get(part, part) for part in re.split(r"([._])", name))
+
+
+def explicit_swap(m: O.OracleModel, first: str, second: str) -> set[str] | None:
+    """Checks the swap of two tokens on every state, explicitly: None if it is not an
+    automorphism (no image for a variable or value, an uncontrollable transition or the
+    specifications not preserved), else the controlled and maintenance transitions that
+    it does not map onto their images (the ones a query must not use)."""
+    index = m.index
+    image_of: list[int] = []
+    for v in m.variables:
+        image = rename(v.name, first, second)
+        if image not in index:
+            return None
+        target = m.variables[index[image]]
+        mapped = {rename(x, first, second) if isinstance(x, str) else x for x in v.domain}
+        if mapped != set(target.domain):
+            return None
+        image_of.append(index[image])
+
+    def sigma(s: O.State) -> O.State:
+        out: list[object] = list(s)
+        for i, value in enumerate(s):
+            out[image_of[i]] = rename(value, first, second) if isinstance(value, str) else value
+        return tuple(out)
+
+    by_name = {t.name: t for t in m.transitions}
+    failed: set[str] = set()
+    for t in m.transitions:
+        other = by_name.get(rename(t.name, first, second))
+        if other is None or other.kind != t.kind:
+            failed.add(t.name)
+    for s in O.all_states(m):
+        image = sigma(s)
+        if all(sp.holds(s) for sp in m.specs) != all(sp.holds(image) for sp in m.specs):
+            return None
+        for t in m.transitions:
+            if t.name in failed:
+                continue
+            other = by_name[rename(t.name, first, second)]
+            if t.enabled(s) != other.enabled(image) or (
+                t.enabled(s) and sigma(t.update(s)) != other.update(image)
+            ):
+                failed.add(t.name)
+    if any(by_name[n].kind in ("automatic", "effect") for n in failed):
+        return None
+    return failed

@@ -1,24 +1,29 @@
 """Hypothesis strategies for models with the structure the bdd engine's reductions exploit.
 
 `tests/strategies.py` draws flat models of a few variables, which almost never split into
-independent components.  These strategies build them on purpose, from the same building
-blocks, so that the reductions of `planner.relevance` are exercised against the oracle:
+independent components or hold interchangeable objects.  These strategies build them on
+purpose, from the same building blocks, so that every reduction of `planner.relevance`
+and `planner.symmetry` is exercised against the oracle:
 
 - `component_models`: 2-3 *parts* over disjoint variables, each a small random model with
   every kind of transition and its own specifications, optionally joined by *bridges*
   (an automatic whose guard reads two parts, an effect, a controlled or maintenance step
   that touches two);
+- `symmetric_models`: 2-3 copies of a random template object named with numbered tokens
+  (`bp1.state`, `r.goto_bp1`, the value `bp1` of the shared `r.pos`) around a shared robot,
+  optionally with one copy's guard altered so that the swaps are not automorphisms;
 - queries for each, touching one, two or all parts, with extras (`forbidden`, `always`,
   `disabled`) per part, and starts chosen to have automatic transitions enabled.
 
-Models are plain dicts shaped like the YAML; the extra knowledge (which part owns which
-variable, which transitions join two parts) travels beside them so the tests can say what
-the reductions must do.  Every model has at most `MAX_STATES` states, so that the oracle
+Models are plain dicts shaped like the YAML; the extra knowledge (which transitions join
+two parts, which copy's transition was altered) travels beside them so the tests can say
+what the reductions must do.  Every model has at most `MAX_STATES` states, so that the oracle
 can enumerate them.
 """
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -304,3 +309,234 @@ def component_queries(draw: st.DrawFn, structured: Structured) -> dict[str, Any]
         "disabled": disabled,
         "max_steps": draw(st.sampled_from([12, 12, 12, 6, 4, 3])),
     }
+
+
+# --------------------------------------------------------------------------- symmetric objects
+
+TOKEN = "bpX"  # the template object's token, replaced by bp1, bp2, ...
+_TOKEN = re.compile(r"(?<![A-Za-z0-9])bpX(?![A-Za-z0-9])")
+OBJECT_VALUES = ("empty", "half", "full")  # no numbered tokens: they would be candidates too
+
+
+@dataclass(frozen=True)
+class Symmetric:
+    """Copies of one template object around a shared robot.
+
+    `altered` names the transition of the last copy whose guard was made different from
+    its siblings' images (None: the copies are exact images of each other, so every swap
+    of two copies is an automorphism of the model).
+    """
+
+    model: Model
+    copies: tuple[str, ...]  # bp1, bp2, ...
+    altered: str | None
+    template_goals: tuple[str, ...]  # atoms over the template object, `bpX` in them
+
+
+def instantiate(text: str, token: str) -> str:
+    return _TOKEN.sub(token, text)
+
+
+@st.composite
+def _object_variables(draw: st.DrawFn, budget: int) -> list[Var]:
+    """The template object's variables: `bpX.state` and maybe a flag `bpX.ok`."""
+    size = draw(st.sampled_from([2, 3, 3, 0]))
+    state: Var = {"name": "bpX.state", "domain": list(OBJECT_VALUES[:size]) if size else "bool"}
+    if len(_values(state)) > budget:
+        state = {"name": "bpX.state", "domain": "bool"}
+    variables = [state]
+    if len(_values(state)) * 2 <= budget and draw(st.booleans()):
+        variables.append({"name": "bpX.ok", "domain": "bool"})
+    return variables
+
+
+@st.composite
+def symmetric_models(draw: st.DrawFn, altered: bool | None = None) -> Symmetric:
+    """2-3 copies of a random template object that the shared robot `r` visits.
+
+    The robot's `r.goto_bpX` (controlled) sets `r.ref`, the effect `r.arrive` moves
+    `r.pos` there, `r.go_home` brings it back; each copy has 2-4 random transitions over its
+    own variables, the shared `tool.busy` and `r.pos == bpX`, and 0-2 specifications.  With
+    `altered` (drawn when None), one of the last copy's transitions gets an extra guard
+    conjunct that its siblings lack.
+    """
+    k = draw(st.integers(2, 3))
+    copies = tuple(f"bp{i}" for i in range(1, k + 1))
+    robot = ["home", *copies]
+    shared: list[Var] = [
+        {"name": "r.pos", "domain": robot},
+        {"name": "r.ref", "domain": robot},
+        {"name": "tool.busy", "domain": "bool"},
+    ]
+    shared_states = len(robot) ** 2 * 2
+    per_object = int((MAX_STATES // shared_states) ** (1 / k))
+    own = draw(_object_variables(per_object))
+    # the template sees r.pos with the values it may name: home and its own token
+    view = [*own, {"name": "r.pos", "domain": ["home", TOKEN]}, shared[2]]
+    template: list[dict[str, Any]] = [
+        {
+            "name": "r.goto_bpX",
+            "kind": "controlled",
+            "guard": "r.ref == home && r.pos == home",
+            "actions": ["r.ref := bpX"],
+        }
+    ]
+    if draw(st.booleans()):
+        template[0]["guard"] += f" && {draw(S.random_atom(own))}"
+    # the work on an object: steps through its state's values while the robot is there,
+    # the last one sometimes automatic (an ability's finish)
+    stages = [_text(v) for v in _values(own[0])]
+    for i in range(len(stages) - 1):
+        finish = i == len(stages) - 2 and len(stages) > 2 and draw(st.booleans())
+        template.append(
+            {
+                "name": f"bpX.work{i}",
+                "kind": "automatic" if finish else "controlled",
+                "guard": f"r.pos == bpX && bpX.state == {stages[i]}",
+                "actions": [f"bpX.state := {stages[i + 1]}"],
+            }
+        )
+    kinds = _kinds()
+    for i in range(draw(st.integers(1, 3))):
+        kind = draw(st.sampled_from(kinds))
+        if kind != "automatic" and draw(st.integers(0, 3)) == 3:
+            guard, actions = draw(S.random_expression(view, 1)), draw(S._actions(own))
+        else:
+            guard, actions = draw(_guard_and_actions([*own, shared[2]], kind))
+        if draw(st.integers(0, 2)) < 2:
+            guard = f"r.pos == bpX && ({guard})"
+        template.append(
+            {"name": f"bpX.t{i}.{kind[:4]}", "kind": kind, "guard": guard, "actions": actions}
+        )
+    specs = []
+    for i in range(draw(st.integers(0, 2))):
+        spec = draw(S._specification(view, i))
+        specs.append({"name": f"bpX.{spec['name']}", "invariant": spec["invariant"]})
+    shared_transitions: list[dict[str, Any]] = [
+        {
+            "name": "r.arrive",
+            "kind": "effect",
+            "guard": "r.ref != r.pos",
+            "actions": ["r.pos := r.ref"],
+        },
+        {
+            "name": "r.go_home",
+            "kind": "controlled",
+            "guard": "r.ref != home && r.pos == r.ref",
+            "actions": ["r.ref := home"],
+        },
+        {
+            "name": "tool.reset",
+            "kind": draw(st.sampled_from(["controlled", "maintenance"])),
+            "guard": "tool.busy",
+            "actions": ["tool.busy := false"],
+        },
+    ]
+    variables = [*shared] + [{**v, "name": instantiate(v["name"], c)} for c in copies for v in own]
+    transitions = list(shared_transitions)
+    for c in copies:
+        for t in template:
+            transitions.append(
+                {
+                    "name": instantiate(t["name"], c),
+                    "kind": t["kind"],
+                    "guard": instantiate(t["guard"], c),
+                    "actions": [instantiate(a, c) for a in t["actions"]],
+                }
+            )
+    specifications = [
+        {"name": instantiate(s["name"], c), "invariant": instantiate(s["invariant"], c)}
+        for c in copies
+        for s in specs
+    ]
+    state = own[0]
+    if len(_values(state)) > 2 and draw(st.booleans()):  # the copies exclude each other
+        top = _text(_values(state)[-1])
+        pairs = [
+            f"!({a}.state == {top} && {b}.state == {top})"
+            for n, a in enumerate(copies)
+            for b in copies[n + 1 :]
+        ]
+        specifications.append({"name": "objects.apart", "invariant": " && ".join(pairs)})
+    changed = draw(st.booleans()) if altered is None else altered
+    altered_name = None
+    if changed:
+        last = copies[-1]
+        mine = [t for t in transitions if last in re.split(r"[._]", t["name"])]
+        uncontrollable = [t for t in mine if t["kind"] in ("automatic", "effect")]
+        if uncontrollable and draw(st.booleans()):  # then no swap with this copy holds
+            mine = uncontrollable
+        target = draw(st.sampled_from(mine))
+        last_view = [{**v, "name": instantiate(v["name"], last)} for v in own] + [shared[2]]
+        target["guard"] = f"({target['guard']}) && {draw(S.random_atom(last_view))}"
+        altered_name = target["name"]
+    values = [v for v in _values(state) if v != _values(state)[0]]
+    goals = tuple(f"bpX.state == {_text(v)}" for v in values)
+    if len(own) > 1:
+        goals += ("bpX.ok",)
+    return Symmetric(
+        {"variables": variables, "transitions": transitions, "specifications": specifications},
+        copies,
+        altered_name,
+        goals,
+    )
+
+
+@st.composite
+def symmetric_queries(draw: st.DrawFn, symmetric: Symmetric) -> dict[str, Any]:
+    """A query on a `symmetric_models` model that keeps the symmetry (the goal over every
+    copy, or the shared part only) or breaks it (the goal, a forbidden predicate or a
+    disabled transition on one copy); `symmetric` says which was drawn."""
+    model = symmetric.model
+    copies = symmetric.copies
+    m = O.parse_model(model)
+    good = sorted(set(O.all_states(m)) - O.bad_states(m), key=repr)
+    maintenance = draw(st.booleans())
+    mode = draw(st.integers(0, 9))
+    start = O.initial_state(m) if mode < 5 or not good else draw(st.sampled_from(good))
+    template = draw(st.sampled_from(symmetric.template_goals))
+    keeps = draw(st.booleans())
+    forbidden: list[str] = []
+    disabled: list[str] = []
+    if keeps:
+        shape = draw(st.sampled_from(["all", "all", "any", "shared"]))
+        if shape == "shared":
+            goal = draw(st.sampled_from(["tool.busy", "r.pos != home && !tool.busy"]))
+        else:
+            glue = " && " if shape == "all" else " || "
+            goal = glue.join(f"({instantiate(template, c)})" for c in copies)
+        if draw(st.integers(0, 3)) == 3:
+            forbidden.append("tool.busy && r.pos != home")
+        if symmetric.altered is not None and draw(st.booleans()):
+            # without the altered transition and its images the swaps hold again
+            disabled += [_on(symmetric.altered, copies[-1], c) for c in copies]
+    else:
+        one = draw(st.sampled_from(copies))
+        breaking = draw(st.sampled_from(["goal", "goal", "forbidden", "disabled"]))
+        goal = instantiate(template, one)
+        if breaking != "goal":
+            goal = " && ".join(f"({instantiate(template, c)})" for c in copies)
+        if breaking == "forbidden":
+            forbidden.append(f"r.pos == {one} && tool.busy")
+        elif breaking == "disabled":
+            mine = [n for n in _names(model) if one in re.split(r"[._]", n)]
+            disabled.append(draw(st.sampled_from(mine)))
+    return {
+        "start": O.state_to_dict(m, start),
+        "goal": goal,
+        "maintenance": maintenance,
+        "forbidden": forbidden,
+        "phi": None,
+        "disabled": disabled,
+        "max_steps": 12,
+        "symmetric": keeps,
+    }
+
+
+def _names(model: Model) -> list[str]:
+    return [t["name"] for t in model["transitions"]]
+
+
+def _on(name: str, token: str, other: str) -> str:
+    """The same transition on another copy: `r.goto_bp3` -> `r.goto_bp1`."""
+    return "".join(other if part == token else part for part in re.split(r"([._])", name))

@@ -15,6 +15,7 @@ the engine reports and how many bits it searches.
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -32,6 +33,7 @@ from planner.loading import ModelError, load_model, scope_for
 from planner.model import Model, TransitionKind
 from planner.planning import PlanQuery, PlanResult, PlanStatus
 from planner.symbolic_planner import Reductions
+from planner.symmetry import find_symmetries
 from planner.transition_planner import TransitionPlanner
 
 if TYPE_CHECKING:
@@ -42,6 +44,8 @@ if TYPE_CHECKING:
         Expected,
         bits_of,
         expected_structure,
+        explicit_swap,
+        rename,
         touches,
     )
 else:
@@ -53,6 +57,8 @@ else:
             Expected,
             bits_of,
             expected_structure,
+            explicit_swap,
+            rename,
             touches,
         )
     except ImportError:  # no tests/__init__.py: pytest put tests/ itself on sys.path
@@ -63,6 +69,8 @@ else:
             Expected,
             bits_of,
             expected_structure,
+            explicit_swap,
+            rename,
             touches,
         )
 
@@ -467,3 +475,132 @@ def test_automatics_and_usable_steps_that_read_two_parts_join_them(
     assert frozenset({"door", "lamp"}) <= expected.components[0]
     assert len(expected.components) == parts
     assert results["default"].statistics["parts"] == parts
+
+
+# --------------------------------------------------------------------------- symmetry
+
+
+def check_symmetries(case: Case, symmetric: SS.Symmetric) -> None:
+    """`find_symmetries` returns real automorphisms only, each with the transitions it
+    breaks, and every swap of two exact copies."""
+    found = {(s.first, s.second): s for s in find_symmetries(case.planners["symmetry"].sym)}
+    for (first, second), swap in found.items():
+        failed = explicit_swap(case.oracle, first, second)
+        assert failed is not None, f"{swap.name} is no automorphism"
+        assert failed <= swap.broken, swap.name
+        for name, image in swap.transitions.items():
+            assert image == rename(name, first, second), swap.name
+    last = symmetric.copies[-1]
+    for first, second in itertools.combinations(symmetric.copies, 2):
+        if symmetric.altered is None or last not in (first, second):
+            assert (first, second) in found, (first, second)
+            assert not found[first, second].broken, (first, second)
+            event("symmetry: swap of exact copies found")
+            continue
+        failed = explicit_swap(case.oracle, first, second)
+        if failed is None:
+            assert (first, second) not in found, (first, second)
+            event("symmetry: swap rejected by verification")
+        elif failed:
+            event("symmetry: swap kept for queries without the altered transition")
+        else:
+            event("symmetry: altered guard changes nothing")
+
+
+@settings(SETTINGS, max_examples=50)
+@given(data=st.data())
+def test_symmetric_models_plan_like_the_oracle_under_every_reduction(
+    data: st.DataObject,
+) -> None:
+    symmetric = data.draw(SS.symmetric_models())
+    case = make_case(symmetric.model)
+    if case is None:
+        return
+    check_symmetries(case, symmetric)
+    for _ in range(QUERIES_PER_MODEL):
+        q = data.draw(SS.symmetric_queries(symmetric))
+        event("query: keeps the symmetry" if q["symmetric"] else "query: breaks it")
+        results = plan_everywhere(case, q)
+        check_structure(case, q, results)
+        # one state per orbit (not always fewer: an orbit's other states need not be
+        # reachable from an asymmetric start)
+        with_swaps = results["symmetry"].statistics.get("reached", 0)
+        if with_swaps < results["default"].statistics.get("reached", 0):
+            event("symmetry: fewer states reached")
+
+
+COPIES = """
+variables:
+  - {name: r.pos, domain: [home, bp1, bp2, bp3]}
+  - {name: bp1.state, domain: [empty, half, full]}
+  - {name: bp2.state, domain: [empty, half, full]}
+  - {name: bp3.state, domain: [empty, half, full]}
+transitions:
+  - {name: r.go_home, guard: "r.pos != home", actions: ["r.pos := home"]}
+  - {name: r.goto_bp1, guard: "r.pos == home", actions: ["r.pos := bp1"]}
+  - {name: r.goto_bp2, guard: "r.pos == home", actions: ["r.pos := bp2"]}
+  - {name: r.goto_bp3, guard: "r.pos == home", actions: ["r.pos := bp3"]}
+  - {name: bp1.fill, guard: "r.pos == bp1 && bp1.state == empty", actions: ["bp1.state := half"]}
+  - {name: bp2.fill, guard: "r.pos == bp2 && bp2.state == empty", actions: ["bp2.state := half"]}
+  - {name: bp3.fill, guard: "r.pos == bp3 && bp3.state == empty", actions: ["bp3.state := half"]}
+  - {name: bp1.done, kind: automatic, guard: "bp1.state == half", actions: ["bp1.state := full"]}
+  - {name: bp2.done, kind: automatic, guard: "bp2.state == half", actions: ["bp2.state := full"]}
+  - {name: bp3.done, kind: automatic, guard: "bp3.state == half", actions: ["bp3.state := full"]}
+"""
+ALL_FULL = "bp1.state == full && bp2.state == full && bp3.state == full"
+
+
+def swaps(case: Case) -> dict[tuple[str, str], frozenset[str]]:
+    """The verified swaps, each with the transitions it breaks."""
+    return {(s.first, s.second): s.broken for s in find_symmetries(case.planners["symmetry"].sym)}
+
+
+def test_interchangeable_copies_are_found_and_searched_once_per_orbit() -> None:
+    case = example(COPIES)
+    assert swaps(case) == {
+        ("bp1", "bp2"): frozenset(),
+        ("bp1", "bp3"): frozenset(),
+        ("bp2", "bp3"): frozenset(),
+    }
+    q = ask(case, ALL_FULL)
+    results = plan_everywhere(case, q)
+    check_structure(case, q, results)
+    assert results["default"].length == 3 * 4 - 1  # goto, fill, done, go_home; no last home
+    reached = results["symmetry"].statistics["reached"]
+    assert reached < results["default"].statistics["reached"]
+    # a goal on one copy keeps the swap of the other two only
+    one = plan_everywhere(case, ask(case, "bp1.state == full"))
+    assert one["default"].statistics["reached"] > one["symmetry"].statistics["reached"]
+
+
+@pytest.mark.parametrize(
+    ("altered", "guard", "kept"),
+    [
+        # an automatic: no swap with bp3 is an automorphism
+        ("bp3.done", "bp3.state == half && r.pos != home", False),
+        # controlled: kept for the queries that do not use it
+        ("bp3.fill", "r.pos == bp3 && bp3.state != full", True),
+    ],
+)
+def test_a_copy_that_only_looks_the_same_is_not_swapped(
+    altered: str, guard: str, kept: bool
+) -> None:
+    spec = yaml.safe_load(COPIES)
+    for t in spec["transitions"]:
+        if t["name"] == altered:
+            t["guard"] = guard
+    case = make_case(spec)
+    assert case is not None
+    found = swaps(case)
+    assert found[("bp1", "bp2")] == frozenset()
+    for pair in [("bp1", "bp3"), ("bp2", "bp3")]:
+        assert (pair in found) is kept
+        if kept:
+            assert found[pair] == {altered, altered.replace("bp3", pair[0])}
+    for goal in [ALL_FULL, "bp3.state == full", "bp1.state == full || bp3.state == full"]:
+        results = plan_everywhere(case, ask(case, goal))
+        check_structure(case, ask(case, goal), results)
+    if kept:  # without the fill steps the swaps hold: nothing moves, fewer states
+        off = ["bp1.fill", "bp2.fill", "bp3.fill"]
+        results = plan_everywhere(case, ask(case, ALL_FULL, disabled=off))
+        assert not results["symmetry"].found
