@@ -13,7 +13,8 @@ and `planner.symmetry` is exercised against the oracle:
   (`bp1.state`, `r.goto_bp1`, the value `bp1` of the shared `r.pos`) around a shared robot,
   optionally with one copy's guard altered so that the swaps are not automorphisms;
 - queries for each, touching one, two or all parts, with extras (`forbidden`, `always`,
-  `disabled`) per part, and starts chosen to have automatic transitions enabled.
+  `disabled`) per part, and starts chosen to have automatic transitions enabled;
+- `relaxations`: such a query turned into a forbidden-state recovery.
 
 Models are plain dicts shaped like the YAML; the extra knowledge (which transitions join
 two parts, which copy's transition was altered) travels beside them so the tests can say
@@ -119,8 +120,9 @@ class Structured:
 
 
 @st.composite
-def _part(draw: st.DrawFn, prefix: str, budget: int) -> Model:
-    """A small random model over `prefix.a`, `prefix.b` (and maybe `prefix.c`)."""
+def _part(draw: st.DrawFn, prefix: str, budget: int, specified: bool = False) -> Model:
+    """A small random model over `prefix.a`, `prefix.b` (and maybe `prefix.c`); with
+    `specified`, at least one specification."""
     variables: list[Var] = []
     states = 1
     for i, name in enumerate(PART_VARIABLES[: draw(st.integers(2, 3))]):
@@ -141,7 +143,7 @@ def _part(draw: st.DrawFn, prefix: str, budget: int) -> Model:
             {"name": f"{prefix}.t{i}.{kind[:4]}", "kind": kind, "guard": guard, "actions": actions}
         )
     specs = []
-    for i in range(draw(st.integers(0, 2))):
+    for i in range(draw(st.integers(int(specified), 2))):
         spec = draw(S._specification(variables, i))
         specs.append({"name": f"{prefix}.{spec['name']}", "invariant": spec["invariant"]})
     return {"variables": variables, "transitions": transitions, "specifications": specs}
@@ -175,15 +177,17 @@ def _bridge(draw: st.DrawFn, parts: list[Model], index: int) -> dict[str, Any]:
 def component_models(
     draw: st.DrawFn,
     bridges: bool | None = None,
+    specified: bool = False,
 ) -> Structured:
     """2-3 parts over disjoint variables, at most `MAX_STATES` states in all; with
-    `bridges` (drawn when None) 1-2 transitions that touch two parts;"""
+    `bridges` (drawn when None) 1-2 transitions that touch two parts; with `specified`
+    the first part has a specification."""
     n = draw(st.integers(2, 3))
     parts: list[Model] = []
     left = MAX_STATES
     for k in range(n):
         reserve = 4 ** (n - k - 1)  # two bools for each part still to come
-        part = draw(_part(PART_NAMES[k], left // reserve))
+        part = draw(_part(PART_NAMES[k], left // reserve, specified and k == 0))
         parts.append(part)
         left //= states_of(part)
     with_bridges = draw(st.booleans()) if bridges is None else bridges
@@ -351,14 +355,16 @@ def _object_variables(draw: st.DrawFn, budget: int) -> list[Var]:
 
 
 @st.composite
-def symmetric_models(draw: st.DrawFn, altered: bool | None = None) -> Symmetric:
+def symmetric_models(
+    draw: st.DrawFn, altered: bool | None = None, specified: bool = False
+) -> Symmetric:
     """2-3 copies of a random template object that the shared robot `r` visits.
 
     The robot's `r.goto_bpX` (controlled) sets `r.ref`, the effect `r.arrive` moves
     `r.pos` there, `r.go_home` brings it back; each copy has 2-4 random transitions over its
     own variables, the shared `tool.busy` and `r.pos == bpX`, and 0-2 specifications.  With
     `altered` (drawn when None), one of the last copy's transitions gets an extra guard
-    conjunct that its siblings lack.
+    conjunct that its siblings lack.  With `specified`, the template has a specification.
     """
     k = draw(st.integers(2, 3))
     copies = tuple(f"bp{i}" for i in range(1, k + 1))
@@ -409,7 +415,7 @@ def symmetric_models(draw: st.DrawFn, altered: bool | None = None) -> Symmetric:
             {"name": f"bpX.t{i}.{kind[:4]}", "kind": kind, "guard": guard, "actions": actions}
         )
     specs = []
-    for i in range(draw(st.integers(0, 2))):
+    for i in range(draw(st.integers(int(specified), 2))):
         spec = draw(S._specification(view, i))
         specs.append({"name": f"bpX.{spec['name']}", "invariant": spec["invariant"]})
     shared_transitions: list[dict[str, Any]] = [
@@ -540,3 +546,29 @@ def _names(model: Model) -> list[str]:
 def _on(name: str, token: str, other: str) -> str:
     """The same transition on another copy: `r.goto_bp3` -> `r.goto_bp1`."""
     return "".join(other if part == token else part for part in re.split(r"([._])", name))
+
+
+# --------------------------------------------------------------------------- recovery queries
+
+
+@st.composite
+def relaxations(draw: st.DrawFn, model: Model, query: dict[str, Any]) -> dict[str, Any]:
+    """The query turned into a forbidden-state recovery: mostly from a bad state, with the
+    specifications it is bad for relaxed (where recovery starts), else 1-2 specifications
+    relaxed for the query's own start; the goal mostly "true" (any good state).  `relaxed`
+    is empty when the model has no specification."""
+    names = [s["name"] for s in model["specifications"]]
+    if not names:
+        return {**query, "relaxed": []}
+    m = O.parse_model(model)
+    bad = sorted(O.bad_states(m), key=repr)
+    start = query["start"]
+    if bad and draw(st.integers(0, 3)) < 3:
+        state = draw(st.sampled_from(bad))
+        relaxed = O.violated(m, state)
+        start = O.state_to_dict(m, state)
+    else:
+        relaxed = draw(st.lists(st.sampled_from(names), min_size=1, max_size=2, unique=True))
+    forbidden = query["forbidden"] if draw(st.integers(0, 3)) == 3 else []
+    goal = query["goal"] if draw(st.integers(0, 2)) == 2 else "true"
+    return {**query, "start": start, "goal": goal, "forbidden": forbidden, "relaxed": relaxed}

@@ -604,3 +604,72 @@ def test_a_copy_that_only_looks_the_same_is_not_swapped(
         off = ["bp1.fill", "bp2.fill", "bp3.fill"]
         results = plan_everywhere(case, ask(case, ALL_FULL, disabled=off))
         assert not results["symmetry"].found
+
+
+# ------------------------------------------------------------------------- forbidden-state recovery
+
+
+@settings(SETTINGS, max_examples=60)
+@given(data=st.data())
+def test_relaxed_queries_recover_like_the_oracle_under_every_reduction(
+    data: st.DataObject,
+) -> None:
+    if data.draw(st.booleans()):
+        structured = data.draw(SS.component_models(specified=True))
+        model, queries = structured.model, SS.component_queries(structured)
+    else:
+        symmetric = data.draw(SS.symmetric_models(specified=True))
+        model, queries = symmetric.model, SS.symmetric_queries(symmetric)
+    case = make_case(model)
+    if case is None:
+        return
+    for _ in range(QUERIES_PER_MODEL):
+        q = data.draw(SS.relaxations(model, data.draw(queries)))
+        start = case.query(q).start
+        if start in O.bad_states(case.oracle):
+            event("relaxed: the start is bad")
+        results = plan_everywhere(case, q)
+        check_structure(case, q, results)
+
+
+# a and b as in TWO_ROBOTS, each with a specification that an effect can break
+RECOVERING = (
+    TWO_ROBOTS
+    + """
+  - {name: a.slip, kind: effect, guard: "a.pos == bp && !a.busy", actions: ["a.busy := true"]}
+  - {name: b.slip, kind: effect, guard: "b.pos == bp && !b.busy", actions: ["b.busy := true"]}
+  - {name: a.back, guard: "a.pos == bp", actions: ["a.pos := home"]}
+specifications:
+  - {name: a.calm_at_bp, invariant: "!(a.pos == bp && a.busy)"}
+  - {name: b.calm_at_bp, invariant: "!(b.pos == bp && b.busy)"}
+"""
+)
+
+
+def test_recovery_plans_only_the_parts_that_are_bad_jointly() -> None:
+    """a stands at bp, bad by closure (it may slip); recovery with a's specification
+    relaxed brings it home, and b, good, stays frozen."""
+    case = example(RECOVERING)
+    start = {"a.pos": "bp"}
+    assert O.violated(case.oracle, case.query(ask(case, "true", start)).start) == ["a.calm_at_bp"]
+    q = ask(case, "true", start, relaxed=["a.calm_at_bp"])
+    results = plan_everywhere(case, q)
+    expected = check_structure(case, q, results)
+    assert expected.active == (frozenset({"a.pos", "a.busy"}),)
+    assert results["default"].plan == ("a.back",)
+    assert results["default"].statistics["parts"] == 1
+    assert results["default"].statistics["searched_bits"] == 3
+    # a recovery plan may pass where the dropped specification is violated: a slipped
+    slipped = ask(case, "true", {"a.pos": "bp", "a.busy": True}, relaxed=["a.calm_at_bp"])
+    assert plan_everywhere(case, slipped)["default"].plan == ("a.settle", "a.back")
+    # a start that violates a kept specification directly is bad for recovery too
+    both = ask(case, "true", {"b.pos": "bp", "b.busy": True}, relaxed=["a.calm_at_bp"])
+    result = plan_everywhere(case, both)["default"]
+    assert result.status is PlanStatus.BAD_START and "b.calm_at_bp" in result.violated
+
+
+def test_sat_refuses_relaxed_queries() -> None:
+    case = example(TWO_ROBOTS)
+    query = case.query(ask(case, "true", relaxed=["nothing"]))
+    with pytest.raises(ValueError, match="needs the bdd engine"):
+        case.planners["default"].plan(query, engine="sat")
