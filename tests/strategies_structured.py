@@ -117,11 +117,52 @@ class Structured:
     model: Model
     parts: tuple[Model, ...]
     bridges: tuple[str, ...]
+    targets: tuple[str | None, ...] = ()  # per part, where its maintenance shortcut leads
 
 
 @st.composite
-def _part(draw: st.DrawFn, prefix: str, budget: int, specified: bool = False) -> Model:
+def _shortcut(draw: st.DrawFn, variables: list[Var], prefix: str) -> list[dict[str, Any]]:
+    """A controlled chain `x == v_i -> x := v_i+1` through a variable's values and a
+    maintenance step straight to its last value: fewer steps, or no maintenance."""
+    var = max(variables, key=lambda v: len(_values(v)))
+    values = [_text(v) for v in _values(var)]
+    name = var["name"]
+    chain = [
+        {
+            "name": f"{prefix}.chain{i}",
+            "kind": "controlled",
+            "guard": f"{name} == {values[i]}",
+            "actions": [f"{name} := {values[i + 1]}"],
+        }
+        for i in range(len(values) - 1)
+    ]
+    jump = {
+        "name": f"{prefix}.jump.main",
+        "kind": "maintenance",
+        "guard": f"{name} != {values[-1]}",
+        "actions": [f"{name} := {values[-1]}"],
+    }
+    if draw(st.booleans()):  # the jump leaves an automatic of the part to finish
+        other = draw(st.sampled_from([v for v in variables if v is not var]))
+        flag = _values(other)
+        jump["actions"].append(f"{other['name']} := {_text(flag[0])}")
+        chain.append(
+            {
+                "name": f"{prefix}.settle.auto",
+                "kind": "automatic",
+                "guard": f"{name} == {values[-1]} && {other['name']} == {_text(flag[0])}",
+                "actions": [f"{other['name']} := {_text(flag[-1])}"],
+            }
+        )
+    return [*chain, jump]
+
+
+@st.composite
+def _part(
+    draw: st.DrawFn, prefix: str, budget: int, shortcuts: bool = False, specified: bool = False
+) -> Model:
     """A small random model over `prefix.a`, `prefix.b` (and maybe `prefix.c`); with
+    `shortcuts`, a chain of controlled steps that one maintenance step can skip; with
     `specified`, at least one specification."""
     variables: list[Var] = []
     states = 1
@@ -142,6 +183,8 @@ def _part(draw: st.DrawFn, prefix: str, budget: int, specified: bool = False) ->
         transitions.append(
             {"name": f"{prefix}.t{i}.{kind[:4]}", "kind": kind, "guard": guard, "actions": actions}
         )
+    if shortcuts:
+        transitions += draw(_shortcut(variables, prefix))
     specs = []
     for i in range(draw(st.integers(int(specified), 2))):
         spec = draw(S._specification(variables, i))
@@ -177,17 +220,19 @@ def _bridge(draw: st.DrawFn, parts: list[Model], index: int) -> dict[str, Any]:
 def component_models(
     draw: st.DrawFn,
     bridges: bool | None = None,
+    shortcuts: bool = False,
     specified: bool = False,
 ) -> Structured:
     """2-3 parts over disjoint variables, at most `MAX_STATES` states in all; with
-    `bridges` (drawn when None) 1-2 transitions that touch two parts; with `specified`
-    the first part has a specification."""
+    `bridges` (drawn when None) 1-2 transitions that touch two parts; with `shortcuts`
+    each part has a chain of controlled steps that a maintenance step skips; with
+    `specified` the first part has a specification."""
     n = draw(st.integers(2, 3))
     parts: list[Model] = []
     left = MAX_STATES
     for k in range(n):
         reserve = 4 ** (n - k - 1)  # two bools for each part still to come
-        part = draw(_part(PART_NAMES[k], left // reserve, specified and k == 0))
+        part = draw(_part(PART_NAMES[k], left // reserve, shortcuts, specified and k == 0))
         parts.append(part)
         left //= states_of(part)
     with_bridges = draw(st.booleans()) if bridges is None else bridges
@@ -206,7 +251,17 @@ def component_models(
     _estimated_where_assigned(model)
     for part in parts:
         _estimated_where_assigned(part)
-    return Structured(model, tuple(parts), tuple(t["name"] for t in extra))
+    targets = tuple(_target(part) for part in parts)
+    return Structured(model, tuple(parts), tuple(t["name"] for t in extra), targets)
+
+
+def _target(part: Model) -> str | None:
+    """`x == v` for the part's maintenance shortcut `x := v`, if it has one."""
+    for t in part["transitions"]:
+        if t["name"].endswith(".jump.main"):
+            target, value = (side.strip() for side in t["actions"][0].split(":="))
+            return f"{target} == {value}"
+    return None
 
 
 def _automatic_enabled(m: O.OracleModel, s: O.State) -> bool:
@@ -277,7 +332,11 @@ def component_queries(draw: st.DrawFn, structured: Structured) -> dict[str, Any]
     )
     goal: list[str] = []
     for k in sorted(touched):
-        goal += draw(_part_goal(parts[k], starts[k], maintenance))
+        target = structured.targets[k] if structured.targets else None
+        if target is not None and draw(st.booleans()):
+            goal.append(target)  # a shortcut's end: fewer steps with maintenance
+        else:
+            goal += draw(_part_goal(parts[k], starts[k], maintenance))
     if len(parts) > 1 and draw(st.integers(0, 4)) == 4:  # a conjunct that ties two parts
         i, j = draw(st.permutations(range(len(parts))))[:2]
         left = draw(_unmet_atom(parts[i]["variables"], start))

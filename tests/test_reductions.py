@@ -16,7 +16,7 @@ the engine reports and how many bits it searches.
 from __future__ import annotations
 
 import itertools
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -254,9 +254,14 @@ def check_structure(case: Case, q: dict[str, Any], results: dict[str, PlanResult
     return expected
 
 
-def plan_everywhere(case: Case, q: dict[str, Any]) -> dict[str, PlanResult]:
+Excuse = Callable[[Case, dict[str, Any], str, PlanResult, O.OracleResult], str | None]
+
+
+def plan_everywhere(
+    case: Case, q: dict[str, Any], excuse: Excuse | None = None
+) -> dict[str, PlanResult]:
     """The query on every reduction (and, when the query allows, on the sat engine),
-    each checked against the oracle."""
+    each checked against the oracle unless `excuse` names a known bug it shows."""
     query = case.query(q)
     options = oracle_options(q)
     expected = O.plan(
@@ -271,6 +276,10 @@ def plan_everywhere(case: Case, q: dict[str, Any]) -> dict[str, PlanResult]:
     results = {}
     for name, planner in case.planners.items():
         results[name] = result = planner.plan(query)
+        known = excuse(case, q, name, result, expected) if excuse is not None else None
+        if known is not None:
+            event(f"known bug: {known}")
+            continue
         check_result(case, q, result, expected, name)
     if not query.relaxed and not query.fewest_maintenance:  # sat: no such queries
         result = case.planners["default"].plan(query, engine="sat")
@@ -673,3 +682,175 @@ def test_sat_refuses_relaxed_queries() -> None:
     query = case.query(ask(case, "true", relaxed=["nothing"]))
     with pytest.raises(ValueError, match="needs the bdd engine"):
         case.planners["default"].plan(query, engine="sat")
+
+
+# --------------------------------------------------------------------------- fewest maintenance
+
+
+def known_fewest_maintenance_bug(
+    case: Case, q: dict[str, Any], name: str, result: PlanResult, expected: O.OracleResult
+) -> str | None:
+    """The known bugs of fewest-maintenance queries, each reproduced by an xfail test
+    below (remove this excuse when they pass), or None when the result must agree:
+
+    - the search with a budget of maintenance steps stops raising the budget when a
+      maintenance step reaches no new state, though it may reach a seen one sooner, so a
+      plan that fits in `max_steps` only with more maintenance is not found (any engine
+      setting);
+    - planned part by part, each part takes its own fewest maintenance steps: together
+      longer than `max_steps` where a plan with more maintenance fits; and a part
+      re-planned to a calm end of the same length may take more maintenance steps.
+    """
+    if expected.status != "found" or expected.maintenance_steps is None:
+        return None
+    if result.status is PlanStatus.UNREACHABLE and expected.maintenance_steps > 0:
+        return "fewest maintenance: cut short by max_steps"
+    more = (
+        result.found and O.maintenance_steps(case.oracle, result.plan) > expected.maintenance_steps
+    )
+    if more and REDUCTIONS[name].parts and structure(case, q).parts > 1:
+        return "fewest maintenance by parts: a calm end with more maintenance"
+    return None
+
+
+@settings(SETTINGS, max_examples=60)
+@given(data=st.data())
+def test_fewest_maintenance_plans_like_the_oracle_under_every_reduction(
+    data: st.DataObject,
+) -> None:
+    structured = data.draw(SS.component_models(shortcuts=True))
+    case = make_case(structured.model)
+    if case is None:
+        return
+    for _ in range(QUERIES_PER_MODEL):
+        q = data.draw(SS.component_queries(structured))
+        # tight bounds: a plan with fewer maintenance steps may then not fit
+        bound = data.draw(st.sampled_from([q["max_steps"], 3, 4, 5, 6]))
+        q = {**q, "maintenance": True, "fewest_maintenance": True, "max_steps": bound}
+        results = plan_everywhere(case, q, excuse=known_fewest_maintenance_bug)
+        check_structure(case, q, results)
+        plain = O.plan(
+            case.oracle,
+            case.query(q).start,
+            q["goal"],
+            max_steps=q["max_steps"],
+            **oracle_options(q),
+        )
+        fewest = results["default"]
+        if plain.status == "found" and fewest.found and fewest.length > plain.length:
+            event("fewest maintenance: a longer plan with fewer maintenance steps")
+
+
+SHORTCUTS = """
+variables:
+  - {name: x, domain: [v0, v1, v2, v3]}
+  - {name: y, domain: [v0, v1, v2, v3]}
+transitions:
+  - {name: x.c0, guard: "x == v0", actions: ["x := v1"]}
+  - {name: x.c1, guard: "x == v1", actions: ["x := v2"]}
+  - {name: x.c2, guard: "x == v2", actions: ["x := v3"]}
+  - {name: x.jump, kind: maintenance, guard: "x != v3", actions: ["x := v3"]}
+  - {name: y.c0, guard: "y == v0", actions: ["y := v1"]}
+  - {name: y.c1, guard: "y == v1", actions: ["y := v2"]}
+  - {name: y.c2, guard: "y == v2", actions: ["y := v3"]}
+  - {name: y.jump, kind: maintenance, guard: "y != v3", actions: ["y := v3"]}
+"""
+
+
+def test_fewest_maintenance_takes_the_longer_plan_without_maintenance() -> None:
+    case = example(SHORTCUTS)
+    q = ask(case, "x == v3 && y == v3", maintenance=True)
+    assert plan_everywhere(case, q)["default"].plan == ("x.jump", "y.jump")
+    fewest = plan_everywhere(case, {**q, "fewest_maintenance": True})
+    assert fewest["default"].plan == ("x.c0", "x.c1", "x.c2", "y.c0", "y.c1", "y.c2")
+    assert fewest["default"].statistics["parts"] == 2
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="bdd, parts: each part takes its own fewest maintenance steps, and their sum of "
+    "steps (6) exceeds max_steps (4) where one jump and one chain fit: unreachable",
+)
+def test_fewest_maintenance_by_parts_within_max_steps() -> None:
+    case = example(SHORTCUTS)
+    q = ask(case, "x == v3 && y == v3", maintenance=True, fewest_maintenance=True, max_steps=4)
+    results = plan_everywhere(case, q)  # the oracle: 4 steps, one of them maintenance
+    assert results["default"].plan == ("x.jump", "y.c0", "y.c1", "y.c2")
+
+
+BY_HAND = """
+variables:
+  - {name: a.x, domain: [v0, v1, v2]}
+  - {name: a.busy, domain: bool}
+  - {name: b.y, domain: [v0, v1]}
+  - {name: b.busy, domain: bool}
+transitions:
+  - {name: a.start, guard: "a.x == v0", actions: ["a.x := v1", "a.busy := true"]}
+  - {name: a.drift, kind: automatic, guard: a.busy, actions: ["a.busy := false", "a.x := v2"]}
+  - {name: a.by_hand, kind: maintenance, guard: "a.x == v0", actions: ["a.x := v1"]}
+  - {name: b.start, guard: "b.y == v0", actions: ["b.y := v1", "b.busy := true"]}
+  - {name: b.settle, kind: automatic, guard: b.busy, actions: ["b.busy := false"]}
+"""
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="bdd, parts: `_order` re-plans part a to a calm end of the same length with "
+    "a.by_hand, one maintenance step more than its plan a.start: (a.by_hand, b.start) "
+    "instead of (b.start, b.settle, a.start), which needs none",
+)
+def test_fewest_maintenance_by_parts_replans_calm_ends_without_more_maintenance() -> None:
+    case = example(BY_HAND)
+    q = ask(case, "a.x == v1 && b.y == v1", maintenance=True, fewest_maintenance=True)
+    results = plan_everywhere(case, q)  # the oracle: 3 steps, no maintenance
+    assert results["default"].plan == ("b.start", "b.settle", "a.start")
+
+
+SLOW_OR_BY_HAND = """
+variables:
+  - {name: x, domain: [v0, v1, v2, v3]}
+  - {name: done, domain: bool}
+transitions:
+  - {name: c0, guard: "x == v0", actions: ["x := v1"]}
+  - {name: c1, guard: "x == v1", actions: ["x := v2"]}
+  - {name: c2, guard: "x == v2", actions: ["x := v3"]}
+  - {name: jump, kind: maintenance, guard: "x != v3", actions: ["x := v3"]}
+  - {name: finish, guard: "x == v3 && !done", actions: ["done := true"]}
+"""
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="search.py: with budget 0 the search stops at max_steps=3 having seen x == v3; "
+    "`exhausted` then holds (the jump reaches no new state), so the budget is not raised "
+    "and (jump, finish) is missed: unreachable, though max_steps=2 finds it",
+)
+@pytest.mark.parametrize("reductions", ["default", "none"])
+def test_fewest_maintenance_raises_the_budget_when_max_steps_cut_the_search(
+    reductions: str,
+) -> None:
+    case = example(SLOW_OR_BY_HAND)
+    q = ask(case, "done", maintenance=True, fewest_maintenance=True, max_steps=3)
+    start = case.query(q).start
+    expected = O.plan(
+        case.oracle, start, "done", max_steps=3, maintenance=True, fewest_maintenance=True
+    )
+    assert expected == O.OracleResult("found", 2, [], 1)
+    result = case.planners[reductions].plan(case.query(q))
+    assert result.plan == ("jump", "finish")
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="sat ignores fewest_maintenance (it refuses relaxed queries, but answers this "
+    "one with the shortest plan, two maintenance jumps)",
+)
+def test_sat_honours_or_refuses_fewest_maintenance() -> None:
+    case = example(SHORTCUTS)
+    q = ask(case, "x == v3 && y == v3", maintenance=True, fewest_maintenance=True)
+    try:
+        result = case.planners["default"].plan(case.query(q), engine="sat")
+    except ValueError:
+        return
+    assert result.length == 6
+    assert O.maintenance_steps(case.oracle, list(result.plan)) == 0
