@@ -10,7 +10,7 @@ from __future__ import annotations
 import itertools
 import re
 from collections import deque
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -84,6 +84,7 @@ class OracleResult:
     status: str  # "found" | "unreachable" | "bad_start"
     length: int | None
     violated: list[str] = field(default_factory=list)
+    maintenance_steps: int | None = None  # with ``fewest_maintenance``: how many a plan needs
 
 
 # --------------------------------------------------------------------------- expressions
@@ -562,6 +563,50 @@ def _start_violations(m: OracleModel, s: State, forbidden: list[Pred]) -> list[s
     return violated(m, s) + [f"forbidden[{i}]" for i, f in enumerate(forbidden) if f(s)]
 
 
+@dataclass(frozen=True)
+class _Rules:
+    """What a query lets a plan do, as predicates on single states.
+
+    Without ``relaxed``: every state is neither bad nor forbidden, the last satisfies the
+    goal.  With ``relaxed`` (forbidden-state recovery, PlanQuery's docstring): every state
+    satisfies each specification *not* named there directly (its invariant holds; no closure
+    over uncontrollable steps) and is not forbidden, and the last state satisfies the goal
+    and is good (bad for no specification at all).
+    """
+
+    allowed: Pred
+    accepts: Pred  # the goal, for the last state
+    reasons: Callable[[State], list[str]]  # why a start state is not allowed
+
+
+def _rules(
+    m: OracleModel, goal: str, forbidden: tuple[str, ...], relaxed: frozenset[str]
+) -> _Rules:
+    unknown = sorted(relaxed - {sp.name for sp in m.specs})
+    if unknown:
+        raise ValueError(f"relaxed names unknown specifications: {unknown}")
+    goal_p = _pred(m, goal)
+    forb = [_pred(m, f) for f in forbidden]
+    bad = bad_states(m)
+    if not relaxed:
+        return _Rules(
+            lambda s: s not in bad and not any(f(s) for f in forb),
+            goal_p,
+            lambda s: _start_violations(m, s, forb),
+        )
+    kept = tuple(sp for sp in m.specs if sp.name not in relaxed)
+
+    def reasons(s: State) -> list[str]:
+        direct = sorted(sp.name for sp in kept if not sp.holds(s))
+        return direct + [f"forbidden[{i}]" for i, f in enumerate(forb) if f(s)]
+
+    return _Rules(
+        lambda s: all(sp.holds(s) for sp in kept) and not any(f(s) for f in forb),
+        lambda s: goal_p(s) and s not in bad,
+        reasons,
+    )
+
+
 def plan(
     m: OracleModel,
     start: State,
@@ -572,45 +617,58 @@ def plan(
     forbidden: tuple[str, ...] = (),
     phi: str | None = None,
     disabled: frozenset[str] = frozenset(),
+    relaxed: frozenset[str] = frozenset(),
+    fewest_maintenance: bool = False,
 ) -> OracleResult:
     """Breadth-first search for a minimal plan of at most ``max_steps`` steps.
 
-    Plain BFS over states is exact because every constraint (not bad, not forbidden,
-    phi before the end, goal at the end) depends on the current state only.
+    Plain BFS over states is exact because every constraint (allowed, phi before the end,
+    goal at the end) depends on the current state only.  With ``fewest_maintenance`` (and
+    ``maintenance``) the plan has the fewest maintenance steps, then the fewest steps: BFS
+    over (state, maintenance steps so far) pairs, which is exact for the same reason, and
+    the least count whose goal pair is reached at all wins (``maintenance_steps``).
     """
     _check_state(m, start)
     _check_disabled(m, disabled)
     if max_steps < 0:
         raise ValueError("max_steps must be >= 0")
-    goal_p = _pred(m, goal)
+    rules = _rules(m, goal, forbidden, relaxed)
     phi_p = _pred(m, phi) if phi is not None else None
-    forb = [_pred(m, f) for f in forbidden]
-    bad = bad_states(m)
+    counting = fewest_maintenance and maintenance
+    kinds = {t.name: t.kind for t in m.transitions}
 
-    start_violations = _start_violations(m, start, forb)
-    if start_violations:
-        return OracleResult("bad_start", None, start_violations)
-    if goal_p(start):
-        return OracleResult("found", 0, [])
+    if not rules.allowed(start):
+        return OracleResult("bad_start", None, rules.reasons(start))
+    if rules.accepts(start):
+        return OracleResult("found", 0, [], 0 if counting else None)
 
-    frontier = [start]
-    seen = {start}
+    # a node is (state, maintenance steps taken); without counting the count stays 0
+    first_hit: dict[int, int] = {}  # count -> least depth where a goal state has it
+    frontier = [(start, 0)]
+    seen = {(start, 0)}
     for depth in range(1, max_steps + 1):
-        next_frontier: list[State] = []
-        for s in frontier:
+        next_frontier: list[tuple[State, int]] = []
+        for s, count in frontier:
             if phi_p is not None and not phi_p(s):
                 continue  # may only be the last state of a plan, and it is not a goal
-            for _, succ in _steps(m, s, maintenance, disabled):
-                if succ in seen or succ in bad or any(f(succ) for f in forb):
+            for name, succ in steps(m, s, maintenance=maintenance, disabled=disabled):
+                node = (succ, count + (counting and kinds[name] == "maintenance"))
+                if node in seen or not rules.allowed(succ):
                     continue
-                if goal_p(succ):
-                    return OracleResult("found", depth, [])
-                seen.add(succ)
-                next_frontier.append(succ)
+                seen.add(node)
+                if rules.accepts(succ):
+                    first_hit.setdefault(node[1], depth)
+                    continue  # a plan may stop here; going on only costs more
+                next_frontier.append(node)
+        if first_hit and not counting:
+            return OracleResult("found", first_hit[0], [])
         frontier = next_frontier
         if not frontier:
             break
-    return OracleResult("unreachable", None, [])
+    if not first_hit:
+        return OracleResult("unreachable", None, [])
+    fewest = min(first_hit)
+    return OracleResult("found", first_hit[fewest], [], fewest if counting else None)
 
 
 def replay(
@@ -623,18 +681,16 @@ def replay(
     forbidden: tuple[str, ...] = (),
     phi: str | None = None,
     disabled: frozenset[str] = frozenset(),
+    relaxed: frozenset[str] = frozenset(),
 ) -> str | None:
     """Check a concrete plan against the semantics; ``None`` if legal, else why not."""
     _check_state(m, start)
     _check_disabled(m, disabled)
-    goal_p = _pred(m, goal)
+    rules = _rules(m, goal, forbidden, relaxed)
     phi_p = _pred(m, phi) if phi is not None else None
-    forb = [_pred(m, f) for f in forbidden]
-    bad = bad_states(m)
 
-    start_violations = _start_violations(m, start, forb)
-    if start_violations:
-        return f"start state is bad or forbidden: {start_violations}"
+    if not rules.allowed(start):
+        return f"start state is bad or forbidden: {rules.reasons(start)}"
     s = start
     for i, name in enumerate(plan):
         if phi_p is not None and not phi_p(s):
@@ -646,11 +702,18 @@ def replay(
                 f"possible: {sorted(possible)}"
             )
         s = possible[name]
-        if s in bad:
-            return f"step {i} ({name}): reaches bad state {state_to_dict(m, s)} {violated(m, s)}"
-        hits = [f"forbidden[{k}]" for k, f in enumerate(forb) if f(s)]
-        if hits:
-            return f"step {i} ({name}): reaches forbidden state {state_to_dict(m, s)} {hits}"
-    if not goal_p(s):
-        return f"final state {state_to_dict(m, s)} does not satisfy goal {goal!r}"
+        if not rules.allowed(s):
+            return (
+                f"step {i} ({name}): reaches bad or forbidden state {state_to_dict(m, s)} "
+                f"{rules.reasons(s) or violated(m, s)}"
+            )
+    if not rules.accepts(s):
+        extra = " and be good" if relaxed else ""
+        return f"final state {state_to_dict(m, s)} does not satisfy goal {goal!r}{extra}"
     return None
+
+
+def maintenance_steps(m: OracleModel, plan: Iterable[str]) -> int:
+    """How many steps of a plan are maintenance transitions."""
+    kinds = {t.name: t.kind for t in m.transitions}
+    return sum(kinds[name] == "maintenance" for name in plan)

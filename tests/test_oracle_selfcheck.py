@@ -475,3 +475,160 @@ def test_strategies_yield_valid_models_and_plan_agrees_with_replay(data: st.Data
         assert O.replay(m, start, [], q["goal"], **query) is not None
     else:
         assert result.length == brute_force_length(m, start, q["goal"], max_steps, **query)
+
+
+# --------------------------------------------------------------------------- recovery
+
+# r may stand at bp while q is there only in recovery; `r.pos == mid` is forbidden by a kept
+# specification, and an effect chain makes every state on the way in bad by closure
+RECOVERY = """
+variables:
+  - {name: r.ref, domain: [home, bp]}
+  - {name: r.pos, domain: [home, mid, bp]}
+  - {name: q.pos, domain: [home, bp], initial: bp}
+transitions:
+  - {name: goto_bp, guard: "r.ref == home", actions: ["r.ref := bp"]}
+  - {name: go_home, guard: "r.ref == bp", actions: ["r.ref := home"]}
+  - {name: move, kind: effect, guard: "r.ref == bp && r.pos == home", actions: ["r.pos := mid"]}
+  - {name: arrive, kind: effect, guard: "r.ref == bp && r.pos == mid", actions: ["r.pos := bp"]}
+  - {name: back, kind: effect, guard: "r.ref == home && r.pos == bp", actions: ["r.pos := home"]}
+  - {name: q.leave, kind: maintenance, guard: "q.pos == bp", actions: ["q.pos := home"]}
+specifications:
+  - {name: not_both_at_bp, invariant: "!(r.pos == bp && q.pos == bp)"}
+  - {name: a_never_mid_with_q_home, invariant: "!(r.pos == mid && q.pos == home)"}
+"""
+
+
+def test_relaxed_plan_may_cross_the_dropped_specification_and_ends_good() -> None:
+    m = load(RECOVERY)
+    collided = st_(m, r__ref="bp", r__pos="bp", q__pos="bp")
+    assert O.violated(m, collided) == ["not_both_at_bp"]
+    relaxed = frozenset({"not_both_at_bp"})
+    assert O.plan(m, collided, "true", max_steps=5).status == "bad_start"
+    # go_home, back: r leaves q; the start violates the dropped specification itself
+    result = O.plan(m, collided, "true", max_steps=5, relaxed=relaxed)
+    assert result == O.OracleResult("found", 2, [])
+    assert O.replay(m, collided, ["go_home", "back"], "true", relaxed=relaxed) is None
+    # stopping half-way is no recovery: the last state must be good
+    msg = O.replay(m, collided, ["go_home"], "true", relaxed=relaxed)
+    assert msg is not None and "be good" in msg
+    # a goal state that is good is a plan of no steps; one that is not, is no plan
+    good = st_(m, r__ref="home", r__pos="home", q__pos="bp")
+    assert O.plan(m, good, "true", max_steps=3, relaxed=relaxed).length == 0
+    assert O.plan(m, collided, "q.pos == bp", max_steps=1, relaxed=relaxed).status == (
+        "unreachable"
+    )
+    with pytest.raises(ValueError):
+        O.plan(m, collided, "true", max_steps=3, relaxed=frozenset({"nope"}))
+
+
+def test_relaxed_plan_keeps_the_other_invariants_directly_not_their_closure() -> None:
+    m = load(RECOVERY)
+    relaxed = frozenset({"not_both_at_bp"})
+    s0 = st_(m, r__ref="home", r__pos="home", q__pos="home")
+    # goto_bp makes the state bad by closure of the kept specification (move leads to mid
+    # with q home): a normal plan may not go there, a recovery plan may
+    requested = st_(m, r__ref="bp", r__pos="home", q__pos="home")
+    assert O.violated(m, requested) == ["a_never_mid_with_q_home"]
+    assert O.plan(m, s0, "r.ref == bp", max_steps=3).status == "unreachable"
+    result = O.plan(m, s0, "r.ref == bp", max_steps=3, relaxed=relaxed)
+    assert result.status == "unreachable"  # ... it must still end good
+    assert O.replay(m, s0, ["goto_bp", "go_home"], "r.ref == home", relaxed=relaxed) is None
+    assert O.replay(m, s0, ["goto_bp", "go_home"], "r.ref == home") is not None
+    # the kept specification itself holds in every state: move into mid is refused
+    msg = O.replay(m, s0, ["goto_bp", "move"], "true", relaxed=relaxed)
+    assert msg is not None and "a_never_mid_with_q_home" in msg
+
+
+def test_relaxed_bad_start_names_the_kept_specifications_violated_directly() -> None:
+    m = load(RECOVERY)
+    mid = st_(m, r__ref="bp", r__pos="mid", q__pos="home")
+    result = O.plan(m, mid, "true", max_steps=3, relaxed=frozenset({"not_both_at_bp"}))
+    assert result == O.OracleResult("bad_start", None, ["a_never_mid_with_q_home"])
+    both = O.plan(
+        m,
+        mid,
+        "true",
+        max_steps=3,
+        relaxed=frozenset({"a_never_mid_with_q_home"}),
+        forbidden=("q.pos == home",),
+    )
+    assert both.violated == ["forbidden[0]"]
+
+
+# --------------------------------------------------------------------------- fewest maintenance
+
+SHORTCUT = """
+variables:
+  - {name: x, domain: [v0, v1, v2, v3]}
+  - {name: y, domain: [v0, v1, v2, v3]}
+transitions:
+  - {name: x.c0, guard: "x == v0", actions: ["x := v1"]}
+  - {name: x.c1, guard: "x == v1", actions: ["x := v2"]}
+  - {name: x.c2, guard: "x == v2", actions: ["x := v3"]}
+  - {name: x.jump, kind: maintenance, guard: "x != v3", actions: ["x := v3"]}
+  - {name: y.c0, guard: "y == v0", actions: ["y := v1"]}
+  - {name: y.c1, guard: "y == v1", actions: ["y := v2"]}
+  - {name: y.c2, guard: "y == v2", actions: ["y := v3"]}
+  - {name: y.jump, kind: maintenance, guard: "y != v3", actions: ["y := v3"]}
+"""
+
+
+def test_fewest_maintenance_first_then_fewest_steps_within_max_steps() -> None:
+    m = load(SHORTCUT)
+    s0 = O.initial_state(m)
+    fewest = {"maintenance": True, "fewest_maintenance": True}
+    assert O.plan(m, s0, "x == v3", max_steps=5, maintenance=True).length == 1
+    assert O.plan(m, s0, "x == v3", max_steps=5, **fewest) == O.OracleResult("found", 3, [], 0)
+    both = "x == v3 && y == v3"
+    assert O.plan(m, s0, both, max_steps=6, **fewest) == O.OracleResult("found", 6, [], 0)
+    # a bound on the steps forces maintenance: one jump and one chain fit in 4
+    assert O.plan(m, s0, both, max_steps=4, **fewest) == O.OracleResult("found", 4, [], 1)
+    assert O.plan(m, s0, both, max_steps=2, **fewest) == O.OracleResult("found", 2, [], 2)
+    assert O.plan(m, s0, both, max_steps=1, **fewest).status == "unreachable"
+    # without maintenance there is nothing to count: a plain query
+    plain = O.plan(m, s0, both, max_steps=6, fewest_maintenance=True)
+    assert plain == O.OracleResult("found", 6, [])
+    assert O.plan(m, s0, "x == v0", max_steps=3, **fewest) == O.OracleResult("found", 0, [], 0)
+    assert O.maintenance_steps(m, ["x.c0", "x.jump", "y.jump"]) == 2
+
+
+def brute_force_fewest(
+    m: O.OracleModel, start: O.State, goal: str, max_steps: int, **query: Any
+) -> tuple[int, int] | None:
+    """(maintenance steps, length) of the least legal plan, by enumeration."""
+    names = [t.name for t in m.transitions]
+    best: tuple[int, int] | None = None
+    for k in range(max_steps + 1):
+        for seq in itertools.product(names, repeat=k):
+            if O.replay(m, start, list(seq), goal, **query) is None:
+                cost = (O.maintenance_steps(m, list(seq)), k)
+                best = cost if best is None else min(best, cost)
+    return best
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.data())
+def test_relaxed_and_fewest_maintenance_plans_agree_with_brute_force(
+    data: st.DataObject,
+) -> None:
+    d = data.draw(S.flat_models(max_vars=3, max_transitions=4))
+    m = O.parse_model(d)
+    q = data.draw(S.queries(d))
+    start = O.state_from_dict(m, q["start"])
+    names = [s.name for s in m.specs]
+    relaxed = frozenset(data.draw(st.lists(st.sampled_from(names), max_size=2))) if names else ()
+    query: dict[str, Any] = {"maintenance": q["maintenance"], "relaxed": frozenset(relaxed)}
+    max_steps = 3
+    fewest = data.draw(st.booleans())
+    result = O.plan(m, start, q["goal"], max_steps=max_steps, fewest_maintenance=fewest, **query)
+    if result.status == "bad_start":
+        assert result.violated
+        assert O.replay(m, start, [], q["goal"], **query) is not None
+        return
+    if fewest and q["maintenance"]:
+        best = brute_force_fewest(m, start, q["goal"], max_steps, **query)
+        found = None if result.length is None else (result.maintenance_steps, result.length)
+        assert found == best
+    else:
+        assert result.length == brute_force_length(m, start, q["goal"], max_steps, **query)
