@@ -196,6 +196,8 @@ class BoundedModelChecker:
             raise ValueError(
                 "forbidden-state recovery (relaxed specifications) needs the bdd engine"
             )
+        if query.maintenance and query.maintenance_cost > 1:
+            raise ValueError("weighing maintenance steps (maintenance_cost) needs the bdd engine")
         sym = self.sym
         usable = [
             t

@@ -77,6 +77,9 @@ def search(sym: SymbolicModel, problem: Problem) -> Outcome:
     seen = [problem.start] * (budget + 1)  # seen[j]: reached with at most j counted steps
     extra = problem.cost - 1
     best: tuple[int, int, int, Function] | None = None  # cost, counted steps, depth, states
+    # whether a larger budget would reach a state sooner than this search: a counted step
+    # out of the last count to a state not reached by the depth it leads to
+    escaped = False
     while True:
         depth = len(layers) - 1
         for j, states in enumerate(layers[-1]):
@@ -114,19 +117,16 @@ def search(sym: SymbolicModel, problem: Problem) -> Outcome:
             frontier.append(found)
             for k in range(j, budget + 1):
                 seen[k] |= found
+        if counted and not escaped:
+            outside = image(sym, problem, sources[budget], counted) & problem.allowed & ~seen[-1]
+            escaped = outside != false
         if all(f == false for f in frontier):
             if best is not None:
                 layers.append(frontier)  # the lower counts died out too: take the hit
                 continue
             break  # fixpoint: the goal is unreachable at any length
         layers.append(frontier)
-    # a larger budget reaches more only through a counted step out of the last count
-    exhausted = not counted or all(
-        image(sym, problem, layer[budget] & problem.always, counted) & problem.allowed & ~seen[-1]
-        == false
-        for layer in layers
-    )
-    return Outcome(False, layers=len(layers), reached=seen[-1], exhausted=exhausted)
+    return Outcome(False, layers=len(layers), reached=seen[-1], exhausted=not escaped)
 
 
 def image(

@@ -238,6 +238,13 @@ class SymbolicPlanner:
             active = [Component(tuple(v.name for v in self.model.variables))]
         parts, found = self._plan_parts(query, sets, active)
         plan = tuple(name for part in parts for name in part.plan)
+        if found and len(plan) > query.max_steps and len(parts) > 1 and self._weighted(query):
+            # each part's cheapest plan is not the shortest: together they may not fit in
+            # max_steps where plans with more maintenance would
+            everything = frozenset(v for c in active for v in c.variables)
+            parts = [self._search(query, sets, everything, sets.goal)]
+            found = parts[0].outcome.found
+            plan = parts[0].plan
         if not found or len(plan) > query.max_steps:
             return self._unreachable(query, self._statistics(parts))
         return self._result(query, plan, parts, self._statistics(parts))
@@ -314,7 +321,9 @@ class SymbolicPlanner:
             goal = self._goal_within(sets, part.variables)
             calm = goal & ~self.automatic(within) & sets.always
             again = self._search(query, sets, part.variables, calm)
-            if again.outcome.found and len(again.plan) == len(part.plan):
+            if again.outcome.found and self._cost(query, again.plan) == self._cost(
+                query, part.plan
+            ):
                 settled.append(again)
             else:
                 unsettled.append(part)
@@ -323,6 +332,15 @@ class SymbolicPlanner:
         head = [p for p in settled if first and p.variables == first[0]]
         middle = [p for p in settled if not (first and p.variables == first[0])]
         return head + middle + unsettled
+
+    @staticmethod
+    def _weighted(query: PlanQuery) -> bool:
+        return query.maintenance and query.maintenance_cost > 1
+
+    def _cost(self, query: PlanQuery, plan: Sequence[str]) -> tuple[int, int]:
+        """A plan's cost and maintenance steps (`PlanQuery.maintenance_cost`)."""
+        maintenance = sum(self.model.transition(n).kind is TransitionKind.MAINTENANCE for n in plan)
+        return len(plan) + (query.maintenance_cost - 1) * maintenance, maintenance
 
     def _rests(self, variables: frozenset[str], query: PlanQuery, sets: _Sets, end: State) -> bool:
         if self._automatic_enabled(variables, sets, end):
@@ -351,7 +369,7 @@ class SymbolicPlanner:
         self, query: PlanQuery, sets: _Sets, variables: frozenset[str], goal: Function
     ) -> _Part:
         problem = self.problem(query, sets, variables, goal)
-        if not (query.maintenance and query.maintenance_cost > 1):
+        if not self._weighted(query):
             outcome = search(self.sym, problem)
             return _Part(variables, outcome.plan, outcome, problem.variables)
         counted = frozenset(
@@ -362,7 +380,13 @@ class SymbolicPlanner:
             weighted = replace(problem, counted=counted, budget=budget, cost=query.maintenance_cost)
             outcome = search(self.sym, weighted)
             layers += outcome.layers
-            if outcome.found or outcome.exhausted:
+            if outcome.exhausted:
+                break
+            # the cheapest plan within the budget; one with more counted steps costs at
+            # least (budget + 1) * cost
+            if outcome.found and self._cost(query, outcome.plan)[0] <= (
+                (budget + 1) * query.maintenance_cost
+            ):
                 break
         return _Part(variables, outcome.plan, replace(outcome, layers=layers), problem.variables)
 

@@ -84,7 +84,7 @@ class OracleResult:
     status: str  # "found" | "unreachable" | "bad_start"
     length: int | None
     violated: list[str] = field(default_factory=list)
-    maintenance_steps: int | None = None  # with ``fewest_maintenance``: how many a plan needs
+    maintenance_steps: int | None = None  # with ``maintenance_cost`` > 1: how many it takes
 
 
 # --------------------------------------------------------------------------- expressions
@@ -568,10 +568,11 @@ class _Rules:
     """What a query lets a plan do, as predicates on single states.
 
     Without ``relaxed``: every state is neither bad nor forbidden, the last satisfies the
-    goal.  With ``relaxed`` (forbidden-state recovery, PlanQuery's docstring): every state
-    satisfies each specification *not* named there directly (its invariant holds; no closure
-    over uncontrollable steps) and is not forbidden, and the last state satisfies the goal
-    and is good (bad for no specification at all).
+    goal.  With ``relaxed`` (forbidden-state recovery, PlanQuery's docstring): the named
+    specifications are dropped, and so is every specification the start is already bad for;
+    every state is bad for none of the others (their closure over uncontrollable steps, the
+    supervisor of the kept specifications) and not forbidden, and the last state satisfies
+    the goal and is good (bad for no specification at all).
     """
 
     allowed: Pred
@@ -580,7 +581,7 @@ class _Rules:
 
 
 def _rules(
-    m: OracleModel, goal: str, forbidden: tuple[str, ...], relaxed: frozenset[str]
+    m: OracleModel, goal: str, forbidden: tuple[str, ...], relaxed: frozenset[str], start: State
 ) -> _Rules:
     unknown = sorted(relaxed - {sp.name for sp in m.specs})
     if unknown:
@@ -594,14 +595,16 @@ def _rules(
             goal_p,
             lambda s: _start_violations(m, s, forb),
         )
-    kept = tuple(sp for sp in m.specs if sp.name not in relaxed)
+    closures = {sp.name: bad_for_spec(m, sp.name) for sp in m.specs}
+    dropped = relaxed | {name for name, states in closures.items() if start in states}
+    kept = [(name, states) for name, states in closures.items() if name not in dropped]
 
     def reasons(s: State) -> list[str]:
-        direct = sorted(sp.name for sp in kept if not sp.holds(s))
-        return direct + [f"forbidden[{i}]" for i, f in enumerate(forb) if f(s)]
+        why = sorted(name for name, states in kept if s in states)
+        return why + [f"forbidden[{i}]" for i, f in enumerate(forb) if f(s)]
 
     return _Rules(
-        lambda s: all(sp.holds(s) for sp in kept) and not any(f(s) for f in forb),
+        lambda s: all(s not in states for _, states in kept) and not any(f(s) for f in forb),
         lambda s: goal_p(s) and s not in bad,
         reasons,
     )
@@ -618,23 +621,24 @@ def plan(
     phi: str | None = None,
     disabled: frozenset[str] = frozenset(),
     relaxed: frozenset[str] = frozenset(),
-    fewest_maintenance: bool = False,
+    maintenance_cost: int = 1,
 ) -> OracleResult:
     """Breadth-first search for a minimal plan of at most ``max_steps`` steps.
 
     Plain BFS over states is exact because every constraint (allowed, phi before the end,
-    goal at the end) depends on the current state only.  With ``fewest_maintenance`` (and
-    ``maintenance``) the plan has the fewest maintenance steps, then the fewest steps: BFS
-    over (state, maintenance steps so far) pairs, which is exact for the same reason, and
-    the least count whose goal pair is reached at all wins (``maintenance_steps``).
+    goal at the end) depends on the current state only.  With ``maintenance_cost`` c > 1
+    (and ``maintenance``) the plan has the least cost, a maintenance step costing c and any
+    other 1, ties broken by fewer maintenance steps, then fewer steps: BFS over (state,
+    maintenance steps so far) pairs, exact for the same reason, gives each pair's fewest
+    steps, and the cheapest goal pair wins (``maintenance_steps``).
     """
     _check_state(m, start)
     _check_disabled(m, disabled)
     if max_steps < 0:
         raise ValueError("max_steps must be >= 0")
-    rules = _rules(m, goal, forbidden, relaxed)
+    rules = _rules(m, goal, forbidden, relaxed, start)
     phi_p = _pred(m, phi) if phi is not None else None
-    counting = fewest_maintenance and maintenance
+    counting = maintenance_cost > 1 and maintenance
     kinds = {t.name: t.kind for t in m.transitions}
 
     if not rules.allowed(start):
@@ -667,8 +671,8 @@ def plan(
             break
     if not first_hit:
         return OracleResult("unreachable", None, [])
-    fewest = min(first_hit)
-    return OracleResult("found", first_hit[fewest], [], fewest if counting else None)
+    cheapest = min(first_hit, key=lambda k: (first_hit[k] + (maintenance_cost - 1) * k, k))
+    return OracleResult("found", first_hit[cheapest], [], cheapest if counting else None)
 
 
 def replay(
@@ -686,7 +690,7 @@ def replay(
     """Check a concrete plan against the semantics; ``None`` if legal, else why not."""
     _check_state(m, start)
     _check_disabled(m, disabled)
-    rules = _rules(m, goal, forbidden, relaxed)
+    rules = _rules(m, goal, forbidden, relaxed, start)
     phi_p = _pred(m, phi) if phi is not None else None
 
     if not rules.allowed(start):

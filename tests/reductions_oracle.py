@@ -113,6 +113,7 @@ def expected_structure(model: Model, oracle: O.OracleModel, query: PlanQuery) ->
         )
 
     recovery = bool(query.relaxed)
+    weighted = query.maintenance and query.maintenance_cost > 1
     active = tuple(c for c in components if unmet(c) or busy(c) or (recovery and bad_part(c)))
     whole = O.plan(oracle, query.start, format_expr(query.goal), **_options(query))
     searches = whole.status != "bad_start" and whole.length != 0 and all(map(holds, always_parts))
@@ -121,10 +122,10 @@ def expected_structure(model: Model, oracle: O.OracleModel, query: PlanQuery) ->
     if searches and not recovery and len(active) > 1:
         for component in active:
             alone, calm = _alone(model, query, component)
-            lengths.append(alone)
+            lengths.append(None if alone is None else alone[0])
             if alone is None:
                 break
-            if calm != alone:
+            if calm != alone:  # as short and as cheap (weighted), or the part goes last
                 unsettled.append(component)
     first = [c for c in active if busy(c)]
     fallback = False
@@ -135,6 +136,11 @@ def expected_structure(model: Model, oracle: O.OracleModel, query: PlanQuery) ->
     elif lengths[-1] is None:  # the engine stops at the first part with no plan
         parts, bits = len(lengths), sum(bits_of(model, c) for c in active[: len(lengths)])
     elif len(first) > 1 or len(unsettled) > 1 or (first and first[0] in unsettled):
+        fallback = True
+        parts, bits = 1, bits_of(model, set().union(*active))
+    elif weighted and sum(n for n in lengths if n is not None) > query.max_steps:
+        # each part's cheapest plan need not be its shortest: when they do not fit
+        # together, the parts are planned jointly
         fallback = True
         parts, bits = 1, bits_of(model, set().union(*active))
     else:
@@ -183,12 +189,12 @@ def _union_find(names: list[str], edges: Iterable[Iterable[str]]) -> tuple[froze
 
 def _alone(
     model: Model, query: PlanQuery, component: frozenset[str]
-) -> tuple[int | None, int | None]:
-    """The oracle's minimal length for the component on its own sub-model (its goal,
-    `always` and forbidden parts), and the minimal length to a *calm* end: there its
-    goal and `always` hold and none of its automatic transitions is enabled.  With
-    `fewest_maintenance`, both are the lengths of plans with the fewest maintenance
-    steps."""
+) -> tuple[tuple[int, int, int] | None, tuple[int, int, int] | None]:
+    """The oracle's best plan for the component on its own sub-model (its goal, `always`
+    and forbidden parts), and its best plan to a *calm* end: there its goal and `always`
+    hold and none of its automatic transitions is enabled.  Each as (length, cost,
+    maintenance steps): with `maintenance_cost` the cheapest plans, else the shortest
+    (cost = length, maintenance steps 0)."""
     # built from the parsed model: a guard's text may name variables its value ignores
     inside = [t for t in model.transitions if touches(t) <= component]
     names = {t.name for t in inside}
@@ -231,8 +237,16 @@ def _alone(
         "forbidden": tuple(within(query.forbidden)),
         "phi": " && ".join(phi) or None,
         "disabled": query.disabled & names,
-        "fewest_maintenance": query.fewest_maintenance,
+        "maintenance_cost": query.maintenance_cost,
     }
+    extra = query.maintenance_cost - 1
+
+    def key(result: O.OracleResult) -> tuple[int, int, int] | None:
+        if result.status != "found" or result.length is None:
+            return None
+        steps = result.maintenance_steps or 0
+        return result.length, result.length + extra * steps, steps
+
     alone = O.plan(m, start, " && ".join(goal) or "true", **options)
     if alone.status != "found":
         return None, None
@@ -242,7 +256,7 @@ def _alone(
         if t.kind is TransitionKind.AUTOMATIC and t.name not in query.disabled
     ]
     calm = O.plan(m, start, " && ".join([*goal, *phi, *automatic]) or "true", **options)
-    return alone.length, calm.length
+    return key(alone), key(calm)
 
 
 # --------------------------------------------------------------------------- swaps
