@@ -3,11 +3,12 @@
 Synthesis (the bad states of the specifications) and the sift after it are the slow part of
 building a planner (half a second on the demo station, more on large models) and depend only
 on the model's text.  The cache keeps, per model text, the BDD variable order and checksums
-(JSON), the bad states (CUDD's DDDMP format) and the states bad for each specification alone
-(dd's JSON, which holds several named roots), keyed by a SHA-256 of the text, the `dd`
-version and this format's number.  Once the first plan has chosen the order for search
-(`TransitionPlanner.tuned`), `remember_order` saves that order instead.  Anything missing,
-unreadable or inconsistent falls back to synthesis; failing to write is not an error.
+(JSON), the bad states (CUDD's DDDMP format) and the states bad for each specification
+alone (`planner.bdd_data`'s JSON, which holds many named roots and reads fast), keyed by a
+SHA-256 of the text, the `dd` version and this format's number.  Once the first plan has
+chosen the order for search (`TransitionPlanner.tuned`), `remember_order` saves that order
+instead.  Anything missing, unreadable or inconsistent falls back to synthesis; failing to
+write is not an error.
 """
 
 from __future__ import annotations
@@ -18,11 +19,12 @@ import os
 import tempfile
 from pathlib import Path
 
+from planner.bdd_data import from_data, to_data
 from planner.model import Model
 from planner.symbolic import Function, SymbolicModel
 from planner.transition_planner import TransitionPlanner
 
-FORMAT = 2  # 2: the states bad for each specification are saved too
+FORMAT = 3  # 2: the states bad for each specification are saved too; 3: as bdd_data
 
 
 def default_directory() -> Path:
@@ -62,7 +64,7 @@ def planner(model: Model, text: str, engine: str, directory: Path | None) -> Tra
                 sym.reorder(entry["order"])
                 (bad,) = sym.bdd.load(str(bad_path))
                 names = {s.name for s in model.specifications}
-                closures = sym.bdd.load(str(specs_path)) if names else {}
+                closures = from_data(sym.bdd, json.loads(specs_path.read_text()))
                 if not isinstance(closures, dict) or set(closures) != names:
                     raise ValueError("the saved closures do not match the specifications")
                 return bad, closures
@@ -105,11 +107,8 @@ def _save(
             order_tmp, bad_tmp = Path(tmp) / "order.json", Path(tmp) / "bad.dddmp"
             specs_tmp = Path(tmp) / "specifications.json"
             built.sym.bdd.dump(str(bad_tmp), [built.bad])
-            # few hundred nodes each: dd's JSON holds them all, named (DDDMP holds one root)
-            if built.bad_by_specification:
-                built.sym.bdd.dump(str(specs_tmp), dict(built.bad_by_specification))
-            else:
-                specs_tmp.write_text("{}")
+            # few hundred nodes each, named (DDDMP holds one root)
+            specs_tmp.write_text(json.dumps(to_data(built.bad_by_specification)))
             entry = {
                 "order": built.order(),
                 "bad_sha256": hashlib.sha256(bad_tmp.read_bytes()).hexdigest(),

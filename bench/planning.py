@@ -260,7 +260,7 @@ class Bench:
             isinstance(known, dict) and "reachable_states" in known
         )
         if known is None or wanted:
-            if instance.sizes_model is None and row.cold is None:
+            if instance.sizes_model is None and row.cold is None and instance.goal is not None:
                 return  # no supervisor was saved: `sp check` would synthesise, and time out
             cache = row.cache if instance.sizes_model is None else None
             arguments = ["check", "--reachable", str(path)] if wanted else ["check", str(path)]
