@@ -53,23 +53,39 @@ class BddCircuit:
         self._ids: dict[Function, int] = {}
         self.root = self._flatten(sym, root)
 
-    def _flatten(self, sym: SymbolicModel, node: Function) -> int:
+    def _flatten(self, sym: SymbolicModel, root: Function) -> int:
+        """The gate of `root`, its children's gates made first; iterative, since a BDD over
+        thousands of bits is deeper than Python's recursion limit."""
+        stack = [root]
+        while stack:
+            node = stack[-1]
+            if self._known(sym, node) is not None:
+                stack.pop()
+                continue
+            if node.negated:  # CUDD children are those of the regular node
+                regular = self._known(sym, ~node)
+                if regular is None:
+                    stack.append(~node)
+                    continue
+                self._ids[node] = -regular
+            else:
+                high, low = self._known(sym, node.high), self._known(sym, node.low)
+                if high is None or low is None:
+                    stack += [c for c, k in ((node.low, low), (node.high, high)) if k is None]
+                    continue
+                self.gates.append(_Gate(node.var, high, low))
+                self._ids[node] = len(self.gates) + 1
+            stack.pop()
+        known = self._known(sym, root)
+        assert known is not None
+        return known
+
+    def _known(self, sym: SymbolicModel, node: Function) -> int | None:
         if node == sym.true:
             return self.TRUE
         if node == sym.false:
             return self.FALSE
-        known = self._ids.get(node)
-        if known is not None:
-            return known
-        if node.negated:  # CUDD children are those of the regular node
-            result = -self._flatten(sym, ~node)
-        else:
-            high = self._flatten(sym, node.high)
-            low = self._flatten(sym, node.low)
-            self.gates.append(_Gate(node.var, high, low))
-            result = len(self.gates) + 1
-        self._ids[node] = result
-        return result
+        return self._ids.get(node)
 
 
 class _Encoding:

@@ -80,3 +80,24 @@ def test_constants_need_no_nodes() -> None:
 def test_damaged_data_is_a_value_error(data: dict[str, Any], problem: str) -> None:
     with pytest.raises(ValueError, match=problem):
         from_data(manager(BITS), data)
+
+
+def test_the_sat_engine_flattens_a_bdd_deeper_than_the_recursion_limit() -> None:
+    """At 10,000 transitions the bad states read 8,000 bits along one path: the SAT
+    engine's if-then-else circuit is built without recursion, one gate per node."""
+    import sys
+    from types import SimpleNamespace
+
+    from planner.bmc import BddCircuit
+
+    depth = sys.getrecursionlimit() + 500
+    bits = [f"x{i}" for i in range(depth)]
+    bdd = manager(bits)
+    chain = bdd.true
+    for b in reversed(bits):
+        chain = bdd.var(b) & chain  # x0 && x1 && ... : one node per bit, one path
+    sym = SimpleNamespace(true=bdd.true, false=bdd.false)
+    circuit = BddCircuit(sym, ~chain)  # type: ignore[arg-type]
+    assert len(circuit.gates) == depth
+    assert circuit.root == -(depth + 1)  # the last gate, x0's, negated
+    assert circuit.gates[-1].bit == "x0"
