@@ -1073,7 +1073,8 @@ class _Tick:
             self.take(plan, k, supervised=True)
 
     def follow(self, goal: Expr, result: PlanResult) -> TransitionPlan:
-        plan = TransitionPlan(goal, result.plan, tuple(blocks(self.r.model, result.plan)))
+        order = blocks(self.r.model, result.plan, end=result.states[-1] if result.states else None)
+        plan = TransitionPlan(goal, result.plan, tuple(order))
         if plan.blocks and self.r.model.transition(plan.steps[0]).kind in UNCONTROLLABLE:
             plan.taken.add(0)  # leading effects and automatics happen by themselves
             plan.remaining[0] = list(plan.blocks[0].steps)
@@ -1192,7 +1193,9 @@ class _Tick:
                 # followed up to its last maintenance step; the rest is production again
                 last = max(k for k, step in enumerate(result.plan) if step in steps)
                 prefix = result.plan[: last + 1]
-                s.maintenance = TransitionPlan(goal, prefix, tuple(blocks(self.r.model, prefix)))
+                end = result.states[last + 1] if len(result.states) > last + 1 else None
+                order = blocks(self.r.model, prefix, end=end)
+                s.maintenance = TransitionPlan(goal, prefix, tuple(order))
                 s.maintained = name
                 return
 

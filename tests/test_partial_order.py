@@ -58,12 +58,46 @@ def test_any_order_the_partial_order_allows_is_legal_and_ends_the_same(
     result = planner.plan(PlanQuery(start, goal, max_steps=10, maintenance=q["maintenance"]))
     if not result.found or result.length < 2:
         return
-    order = blocks(model, result.plan, {g.transition: g.guard for g in planner.guards})
+    guards = {g.transition: g.guard for g in planner.guards}
+    order = blocks(model, result.plan, guards, end=result.states[-1])
     assert [s for b in order for s in b.steps] == list(result.plan)
     done = _draw_order(data, order)
     reordered = [s for k in done for s in order[k].steps]
     problem = O.replay(oracle_model, start, reordered, q["goal"], maintenance=q["maintenance"])
     assert problem is None, (done, problem)
+
+
+# found by the random profile: t2 re-enables t3.auto at the plan's end, so t0 cannot follow it
+PENDING_AT_THE_END = """
+variables:
+  - {name: a, domain: bool}
+  - {name: b, domain: bool}
+transitions:
+  - {name: t0.cont, guard: "a == false", actions: ["a := true"]}
+  - {name: t2.cont, guard: "b == true", actions: ["b := false"]}
+  - {name: t3.auto, kind: automatic, guard: "b == false", actions: ["b := true"]}
+"""
+
+
+def test_a_block_that_leaves_an_automatic_transition_enabled_goes_last() -> None:
+    model = load_model(PENDING_AT_THE_END, "pending.yaml")
+    planner = TransitionPlanner(model)
+    goal = parse_expr("a == true && b == false", scope_for(model.domains))
+    result = planner.plan(PlanQuery((False, False), goal, max_steps=10))
+    assert result.plan == ("t3.auto", "t0.cont", "t2.cont")
+    order = blocks(model, result.plan, end=result.states[-1])
+    assert [b.transition for b in order] == ["t3.auto", "t0.cont", "t2.cont"]
+    assert order[2].after == {0, 1}  # t3.auto is enabled at the end: t2's block last
+    assert order[1].after == {0}
+    # without the end state the blocks of t0 and t2 look independent, and t0 after t2 fails
+    assert blocks(model, result.plan)[2].after == {0}
+    problem = O.replay(
+        O.parse_model(yaml.safe_load(PENDING_AT_THE_END) | {"specifications": []}),
+        (False, False),
+        ["t3.auto", "t2.cont", "t0.cont"],
+        "a == true && b == false",
+    )
+    assert problem is not None and "t0.cont" in problem
 
 
 def _replay(planner: TransitionPlanner, start: tuple[object, ...], steps: list[str]) -> str | None:
