@@ -7,7 +7,7 @@ against it.  A `State` is a tuple of values in the model's variable order.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
 from planner.expressions import (
@@ -167,8 +167,12 @@ class Semantics:
         *,
         maintenance: bool = False,
         disabled: frozenset[str] = frozenset(),
+        enabled_automatic: Sequence[str] | None = None,
     ) -> str | None:
-        """None if transition `name` is a possible step from `state`, else the reason why not."""
+        """None if transition `name` is a possible step from `state`, else the reason why not.
+
+        `enabled_automatic`: the usable automatic transitions enabled in `state`, when the
+        caller keeps track of them (replaying a plan over a large model); else computed."""
         chosen = self.by_name.get(name)
         if chosen is None:
             return f"there is no transition '{name}'"
@@ -179,7 +183,11 @@ class Semantics:
         if not chosen.guard(state):
             return f"the guard of '{name}' does not hold"
         if chosen.kind is not TransitionKind.AUTOMATIC:
-            blocking = [a.name for a in self.automatic if a.name not in disabled and a.guard(state)]
+            blocking = (
+                list(enabled_automatic)
+                if enabled_automatic is not None
+                else [a.name for a in self.automatic if a.name not in disabled and a.guard(state)]
+            )
             if blocking:
                 return f"automatic transition '{blocking[0]}' is enabled and goes first"
         return None

@@ -18,7 +18,7 @@ from planner.model import TransitionKind
 from planner.planning import PlanQuery, PlanResult, PlanStatus, State
 from planner.relevance import Component, Structure, allowed_conjuncts, cone_of_influence
 from planner.search import Outcome, Problem, probe, search
-from planner.semantics import CompiledTransition, Predicate, Semantics, compile_expr
+from planner.semantics import Predicate, Semantics, compile_expr
 from planner.sifting import blocks as sifting_blocks
 from planner.symbolic import Function, SymbolicModel, SymbolicTransition
 from planner.symmetry import Swapper, Symmetry, find_symmetries, neighbours
@@ -560,13 +560,17 @@ class SymbolicPlanner:
         usable = [a.name not in disabled for a in automatic]
         enabled = {k for k, a in enumerate(automatic) if usable[k] and a.guard(state)}
         for name in plan:
-            step = semantics.by_name.get(name)
             if check is not None:
-                problem = _not_possible(step, state, enabled, check)
+                problem = semantics.step_allowed(
+                    state,
+                    name,
+                    maintenance=check.maintenance,
+                    disabled=check.disabled,
+                    enabled_automatic=[automatic[k].name for k in sorted(enabled)],
+                )
                 if problem is not None:
                     raise AssertionError(f"planned step {name} is not possible: {problem}")
-            assert step is not None
-            after = step.apply(state)
+            after = semantics.by_name[name].apply(state)
             if check is not None:  # only automatics reading what changed can change
                 changed = [i for i, (u, v) in enumerate(zip(state, after, strict=True)) if u != v]
                 for k in {k for i in changed for k in readers.get(i, ())}:
@@ -577,23 +581,6 @@ class SymbolicPlanner:
             state = after
             states.append(state)
         return tuple(states)
-
-
-def _not_possible(
-    step: CompiledTransition | None, state: State, automatic: set[int], query: PlanQuery
-) -> str | None:
-    """Why a planned step is not a step of the semantics (section 8), or None."""
-    if step is None:
-        return "there is no such transition"
-    if step.name in query.disabled:
-        return "it is disabled"
-    if step.kind is TransitionKind.MAINTENANCE and not query.maintenance:
-        return "maintenance is not allowed"
-    if not step.guard(state):
-        return "its guard does not hold"
-    if step.kind is not TransitionKind.AUTOMATIC and automatic:
-        return "an automatic transition is enabled and goes first"
-    return None
 
 
 def _lookups(sym: SymbolicModel) -> float:
