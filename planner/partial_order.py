@@ -10,8 +10,8 @@ in parallel (seed 000 sec. 4.2, seed 001 sec. VIII).
 
 A plan may end where an automatic transition is enabled (the goal holds, so nothing more is
 planned).  Automatic transitions have priority, so no controlled step could follow the
-block that leaves it enabled: given the plan's end state, the last block then waits for all
-the others.
+block that leaves it enabled: told so, the last block then waits for all the
+others.
 """
 
 from __future__ import annotations
@@ -20,8 +20,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 from planner.expressions import Expr, variables_of
-from planner.model import UNCONTROLLABLE, Model, TransitionKind
-from planner.semantics import State, compile_expr
+from planner.model import UNCONTROLLABLE, Model
 
 
 @dataclass(frozen=True)
@@ -47,13 +46,13 @@ def blocks(
     model: Model,
     plan: Sequence[str],
     extra_guards: Mapping[str, Expr] | None = None,
-    end: State | None = None,
+    automatic_at_end: bool = False,
 ) -> list[Block]:
     """The plan's blocks with their dependencies; leading uncontrollable steps form block 0.
 
-    `extra_guards` (the supervisor's) count as read by their transitions; `end`, the state
-    the plan ends in, orders the last block after all others when an automatic transition
-    is enabled there (see the module's docstring).
+    `extra_guards` (the supervisor's) count as read by their transitions;
+    `automatic_at_end`, whether an automatic transition is enabled where the plan ends,
+    orders the last block after all others (see the module's docstring).
     """
     extra = extra_guards or {}
     couplings = [variables_of(t.guard) for t in model.transitions if t.kind in UNCONTROLLABLE]
@@ -81,19 +80,10 @@ def blocks(
             for j in range(k)
             if (j == 0 and leading) or _dependent(raw[j][2], raw[j][3], reads, writes, couplings)
         )
-        if k == len(raw) - 1 and k > 0 and end is not None and _automatic_pending(model, end):
+        if automatic_at_end and k == len(raw) - 1:
             after = frozenset(range(k))
         result.append(Block(index, tuple(steps), frozenset(reads), frozenset(writes), after))
     return result
-
-
-def _automatic_pending(model: Model, state: State) -> bool:
-    index = model.variable_index
-    return any(
-        compile_expr(t.guard, index)(state)
-        for t in model.transitions
-        if t.kind is TransitionKind.AUTOMATIC
-    )
 
 
 def _dependent(

@@ -1073,7 +1073,8 @@ class _Tick:
             self.take(plan, k, supervised=True)
 
     def follow(self, goal: Expr, result: PlanResult) -> TransitionPlan:
-        order = blocks(self.r.model, result.plan, end=result.states[-1] if result.states else None)
+        pending = bool(result.states) and self.r.semantics.automatic_enabled(result.states[-1])
+        order = blocks(self.r.model, result.plan, automatic_at_end=pending)
         plan = TransitionPlan(goal, result.plan, tuple(order))
         if plan.blocks and self.r.model.transition(plan.steps[0]).kind in UNCONTROLLABLE:
             plan.taken.add(0)  # leading effects and automatics happen by themselves
@@ -1193,8 +1194,10 @@ class _Tick:
                 # followed up to its last maintenance step; the rest is production again
                 last = max(k for k, step in enumerate(result.plan) if step in steps)
                 prefix = result.plan[: last + 1]
-                end = result.states[last + 1] if len(result.states) > last + 1 else None
-                order = blocks(self.r.model, prefix, end=end)
+                pending = len(result.states) > last + 1 and self.r.semantics.automatic_enabled(
+                    result.states[last + 1]
+                )
+                order = blocks(self.r.model, prefix, automatic_at_end=pending)
                 s.maintenance = TransitionPlan(goal, prefix, tuple(order))
                 s.maintained = name
                 return

@@ -59,7 +59,8 @@ def test_any_order_the_partial_order_allows_is_legal_and_ends_the_same(
     if not result.found or result.length < 2:
         return
     guards = {g.transition: g.guard for g in planner.guards}
-    order = blocks(model, result.plan, guards, end=result.states[-1])
+    pending = Semantics(model).automatic_enabled(result.states[-1])
+    order = blocks(model, result.plan, guards, automatic_at_end=pending)
     assert [s for b in order for s in b.steps] == list(result.plan)
     done = _draw_order(data, order)
     reordered = [s for k in done for s in order[k].steps]
@@ -85,11 +86,12 @@ def test_a_block_that_leaves_an_automatic_transition_enabled_goes_last() -> None
     goal = parse_expr("a == true && b == false", scope_for(model.domains))
     result = planner.plan(PlanQuery((False, False), goal, max_steps=10))
     assert result.plan == ("t3.auto", "t0.cont", "t2.cont")
-    order = blocks(model, result.plan, end=result.states[-1])
+    assert Semantics(model).automatic_enabled(result.states[-1])
+    order = blocks(model, result.plan, automatic_at_end=True)
     assert [b.transition for b in order] == ["t3.auto", "t0.cont", "t2.cont"]
     assert order[2].after == {0, 1}  # t3.auto is enabled at the end: t2's block last
     assert order[1].after == {0}
-    # without the end state the blocks of t0 and t2 look independent, and t0 after t2 fails
+    # not told, the blocks of t0 and t2 look independent, and t0 after t2 fails
     assert blocks(model, result.plan)[2].after == {0}
     problem = O.replay(
         O.parse_model(yaml.safe_load(PENDING_AT_THE_END) | {"specifications": []}),
