@@ -631,3 +631,21 @@ def relaxations(draw: st.DrawFn, model: Model, query: dict[str, Any]) -> dict[st
     forbidden = query["forbidden"] if draw(st.integers(0, 3)) == 3 else []
     goal = query["goal"] if draw(st.integers(0, 2)) == 2 else "true"
     return {**query, "start": start, "goal": goal, "forbidden": forbidden, "relaxed": relaxed}
+
+
+# the smallest model of `component_models(shortcuts=True)`, written out: two chains of three
+# steps, each with a maintenance step that jumps to its end
+SHORTCUTS = """
+variables:
+  - {name: x, domain: [v0, v1, v2, v3]}
+  - {name: y, domain: [v0, v1, v2, v3]}
+transitions:
+  - {name: x.c0, guard: "x == v0", actions: ["x := v1"]}
+  - {name: x.c1, guard: "x == v1", actions: ["x := v2"]}
+  - {name: x.c2, guard: "x == v2", actions: ["x := v3"]}
+  - {name: x.jump, kind: maintenance, guard: "x != v3", actions: ["x := v3"]}
+  - {name: y.c0, guard: "y == v0", actions: ["y := v1"]}
+  - {name: y.c1, guard: "y == v1", actions: ["y := v2"]}
+  - {name: y.c2, guard: "y == v2", actions: ["y := v3"]}
+  - {name: y.jump, kind: maintenance, guard: "y != v3", actions: ["y := v3"]}
+"""

@@ -17,13 +17,16 @@ from hypothesis import strategies as st
 if TYPE_CHECKING:
     from tests import oracle as O
     from tests import strategies as S
+    from tests import strategies_structured as SS
 else:
     try:
         from tests import oracle as O
         from tests import strategies as S
+        from tests import strategies_structured as SS
     except ImportError:  # no tests/__init__.py: pytest put tests/ itself on sys.path
         import oracle as O
         import strategies as S
+        import strategies_structured as SS
 
 
 def load(text: str) -> O.OracleModel:
@@ -562,24 +565,9 @@ def test_relaxed_drops_the_specifications_the_start_is_already_bad_for() -> None
 
 # --------------------------------------------------------------------------- maintenance cost
 
-SHORTCUT = """
-variables:
-  - {name: x, domain: [v0, v1, v2, v3]}
-  - {name: y, domain: [v0, v1, v2, v3]}
-transitions:
-  - {name: x.c0, guard: "x == v0", actions: ["x := v1"]}
-  - {name: x.c1, guard: "x == v1", actions: ["x := v2"]}
-  - {name: x.c2, guard: "x == v2", actions: ["x := v3"]}
-  - {name: x.jump, kind: maintenance, guard: "x != v3", actions: ["x := v3"]}
-  - {name: y.c0, guard: "y == v0", actions: ["y := v1"]}
-  - {name: y.c1, guard: "y == v1", actions: ["y := v2"]}
-  - {name: y.c2, guard: "y == v2", actions: ["y := v3"]}
-  - {name: y.jump, kind: maintenance, guard: "y != v3", actions: ["y := v3"]}
-"""
-
 
 def test_maintenance_cost_weighs_a_maintenance_step_against_steps() -> None:
-    m = load(SHORTCUT)
+    m = load(SS.SHORTCUTS)
     s0 = O.initial_state(m)
     costly = {"maintenance": True, "maintenance_cost": 10}
     assert O.plan(m, s0, "x == v3", max_steps=5, maintenance=True).length == 1

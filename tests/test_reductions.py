@@ -717,24 +717,8 @@ def test_weighted_maintenance_plans_like_the_oracle_under_every_reduction(
             event("maintenance cost: a longer plan with fewer maintenance steps")
 
 
-SHORTCUTS = """
-variables:
-  - {name: x, domain: [v0, v1, v2, v3]}
-  - {name: y, domain: [v0, v1, v2, v3]}
-transitions:
-  - {name: x.c0, guard: "x == v0", actions: ["x := v1"]}
-  - {name: x.c1, guard: "x == v1", actions: ["x := v2"]}
-  - {name: x.c2, guard: "x == v2", actions: ["x := v3"]}
-  - {name: x.jump, kind: maintenance, guard: "x != v3", actions: ["x := v3"]}
-  - {name: y.c0, guard: "y == v0", actions: ["y := v1"]}
-  - {name: y.c1, guard: "y == v1", actions: ["y := v2"]}
-  - {name: y.c2, guard: "y == v2", actions: ["y := v3"]}
-  - {name: y.jump, kind: maintenance, guard: "y != v3", actions: ["y := v3"]}
-"""
-
-
 def test_a_costly_maintenance_step_gives_way_to_a_longer_plan() -> None:
-    case = example(SHORTCUTS)
+    case = example(SS.SHORTCUTS)
     q = ask(case, "x == v3 && y == v3", maintenance=True)
     assert plan_everywhere(case, q)["default"].plan == ("x.jump", "y.jump")
     costly = plan_everywhere(case, {**q, "maintenance_cost": 10})
@@ -747,7 +731,7 @@ def test_a_costly_maintenance_step_gives_way_to_a_longer_plan() -> None:
 def test_weighted_parts_that_do_not_fit_in_max_steps_are_planned_jointly() -> None:
     """Each part's cheapest plan is its chain (6 steps in all), over max_steps 4: a joint
     search finds one jump and one chain."""
-    case = example(SHORTCUTS)
+    case = example(SS.SHORTCUTS)
     q = ask(case, "x == v3 && y == v3", maintenance=True, maintenance_cost=10, max_steps=4)
     results = plan_everywhere(case, q)  # the oracle: 4 steps, one of them maintenance
     plan = results["default"].plan
@@ -810,7 +794,7 @@ def test_a_maintenance_step_is_taken_when_max_steps_leaves_no_other_way(
 
 
 def test_sat_refuses_weighted_maintenance() -> None:
-    case = example(SHORTCUTS)
+    case = example(SS.SHORTCUTS)
     q = ask(case, "x == v3 && y == v3", maintenance=True, maintenance_cost=10)
     with pytest.raises(ValueError, match="bdd engine"):
         case.planners["default"].plan(case.query(q), engine="sat")
