@@ -19,7 +19,7 @@ from dataclasses import dataclass, replace
 from enum import StrEnum
 
 from planner.expressions import variables_of
-from planner.runner import Runner, RunnerState
+from planner.runner import IntentionState, OperationState, Runner, RunnerState
 
 SHELVE_LIMIT = 8 * 60.0  # minutes: a shelved alarm comes back within a shift
 
@@ -68,7 +68,7 @@ def conditions(runner: Runner, state: RunnerState) -> dict[str, Condition]:
             f"automatic steps are halted ({state.halted}); "
             "the station model needs an engineer's fix",
         )
-    violated = runner.semantics.violated(runner.as_state(state.values))
+    violated = runner.semantics.violated(runner.index.as_state(state.values))
     if violated or state.recovery is not None:
         specs = ", ".join(violated or sorted(state.relaxed)) or "a specification"
         if state.recovery is None:
@@ -89,25 +89,22 @@ def conditions(runner: Runner, state: RunnerState) -> dict[str, Condition]:
             + "; its transitions are disabled until it answers",
             name,
         )
-    for name, st in sorted(state.intentions.items()):
-        if st == "error":
-            what = "no plan of operations reaches its goal"
-            waiting = "; maintenance steps wait on the task cards" if state.maintenance else ""
-            about = runner.intentions[name].description
-            add(
-                f"intention:{name}", Priority.HIGH, _words("intention", name, about, what) + waiting
-            )
+    for name in sorted(state.intentions_in(IntentionState.ERROR)):
+        what = "no plan of operations reaches its goal"
+        waiting = "; maintenance steps wait on the task cards" if state.maintenance else ""
+        about = runner.index.intentions[name].description
+        add(f"intention:{name}", Priority.HIGH, _words("intention", name, about, what) + waiting)
     # an operation in error matters while production needs the station: once no intention is
     # executing it waits, harmless, until the background check clears it (E6 leaves one so)
-    if any(st in ("e", "error") for st in state.intentions.values()):
-        for name, st in sorted(state.operations.items()):
-            if st == "error":
-                add(
-                    f"operation:{name}",
-                    Priority.MEDIUM,
-                    _operation_message(runner, state, name),
-                    _operation_resource(runner, name),
-                )
+    busy = (IntentionState.EXECUTING, IntentionState.ERROR)
+    if any(current in busy for current in state.intentions.values()):
+        for name in sorted(state.operations_in(OperationState.ERROR)):
+            add(
+                f"operation:{name}",
+                Priority.MEDIUM,
+                _operation_message(runner, state, name),
+                _operation_resource(runner, name),
+            )
     for name in sorted(state.timed_out):
         about = runner.model.transition(name).description
         what = "it did not happen in time; planning leaves it out until it is re-enabled"
@@ -115,7 +112,7 @@ def conditions(runner: Runner, state: RunnerState) -> dict[str, Condition]:
             f"effect:{name}",
             Priority.LOW,
             _words("effect", name, about, what),
-            runner.owner.get(name, ""),
+            runner.index.owner.get(name, ""),
         )
     return out
 
@@ -132,13 +129,13 @@ def _operation_message(runner: Runner, state: RunnerState, name: str) -> str:
     what = "its goal cannot be reached"
     if failures >= runner.config.retries:
         what += f"; it failed {failures} times and is not retried"
-    return _words("operation", name, runner.operations[name].description, what)
+    return _words("operation", name, runner.index.operations[name].description, what)
 
 
 def _operation_resource(runner: Runner, name: str) -> str:
     """The one resource owning what the operation changes, or "" when several or none do
     (operations do not name their resources; get_nr_r2 changes nr, r2_tc and r2_cam)."""
-    operation = runner.operations[name]
+    operation = runner.index.operations[name]
     changed = variables_of(operation.goal) | {a.target for a in operation.effects}
     owners = {r.name for r in runner.station.resources if changed & set(r.variables)}
     return owners.pop() if len(owners) == 1 else ""

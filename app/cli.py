@@ -21,6 +21,8 @@ from planner.expressions import Expr, ExpressionError, parse_expr
 from planner.loading import Diagnostic, ModelError, closest, scope_for
 from planner.model import Model, SourceLocation, TransitionKind, VariableKind
 from planner.planning import PlanQuery, PlanResult, PlanStatus, State
+from planner.runner import EventKind
+from planner.runner.queries import QueryObserver
 from planner.station import Station, load_station
 from planner.synthesis import COUNTABLE_BITS
 
@@ -29,7 +31,8 @@ class UsageError(Exception):
     """Bad arguments or inputs other than the model: exit 2 with this message."""
 
 
-def main(argv: Sequence[str] | None = None) -> int:
+def main(argv: Sequence[str] | None = None, *, observer: QueryObserver | None = None) -> int:
+    """`sp ARGS`; `observer` sees every planning query of `sp run` (benchmarks)."""
     started = time.perf_counter()
     parser = _parser()
     args = parser.parse_args(argv)
@@ -37,7 +40,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.command == "plan":
             return _plan(args, started)
         if args.command == "run":
-            return _run(args)
+            return _run(args, observer)
         if args.command == "serve":
             return _serve(args)
         if args.command == "audit":
@@ -245,7 +248,7 @@ def _plan(args: argparse.Namespace, started: float) -> int:
     return 0 if result.status is PlanStatus.FOUND else 1
 
 
-def _run(args: argparse.Namespace) -> int:
+def _run(args: argparse.Namespace, observer: QueryObserver | None = None) -> int:
     from app.scenario import Planners, Scenario, ScenarioError, load_scenario, play
     from planner.operation_planner import OperationPlanner
 
@@ -266,11 +269,19 @@ def _run(args: argparse.Namespace) -> int:
     planners = Planners(_planner(args, station.model, text), OperationPlanner(station))
     planners.transition.prepare()  # before the clock starts, as a station does while it builds
     finished = False
-    for event in play(station, scenario, planners, speed=args.speed, stopwatch=time.perf_counter):
-        if args.quiet and event.kind in ("effect", "taken"):
+    playing = play(
+        station,
+        scenario,
+        planners,
+        speed=args.speed,
+        stopwatch=time.perf_counter,
+        observer=observer,
+    )
+    for event in playing:
+        if args.quiet and event.kind in (EventKind.EFFECT, EventKind.TAKEN):
             continue
         print(json.dumps(event.as_json(), default=str) if args.json else event, flush=True)
-        finished = event.kind == "done"
+        finished = event.kind is EventKind.DONE
     _remember_order(args, planners.transition, text)
     return 0 if finished else 1
 

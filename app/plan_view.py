@@ -14,10 +14,16 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
+from hw.faults import Fault, FaultKind
 from planner.expressions import Value, format_value
 from planner.model import Model, TransitionKind, VariableKind
-from planner.runner import OperationPlan, TransitionPlan
-from planner.runner_io import Event
+from planner.runner import (
+    IntentionState,
+    OperationPlan,
+    OperationState,
+    RunnerState,
+    TransitionPlan,
+)
 from planner.station import Station
 
 # the drawing's grid, in SVG user units (= CSS pixels: the SVG is drawn at its own size)
@@ -253,13 +259,15 @@ def transition_plan(
     return layout(kind, steps, [b.after for b in plan.blocks])
 
 
-def operation_plan(plan: OperationPlan, station: Station, states: Mapping[str, str]) -> PlanDrawing:
+def operation_plan(
+    plan: OperationPlan, station: Station, states: Mapping[str, OperationState]
+) -> PlanDrawing:
     """The operation plan as a drawing; an operation in error is marked wherever it stands."""
     steps = []
     for k, name in enumerate(plan.steps):
         if k in plan.finished:
             status = "done"
-        elif states.get(name) == "error":
+        elif states.get(name) == OperationState.ERROR:
             status = "error"
         elif k in plan.started:
             status = "started"
@@ -276,26 +284,6 @@ def operation_plan(plan: OperationPlan, station: Station, states: Mapping[str, s
             title.append("after: " + ", ".join(plan.steps[j] for j in sorted(plan.after[k])))
         steps.append(Step(name, status, STATUS_WORDS[status], "\n".join(title)))
     return layout("operations", steps, plan.after)
-
-
-# -- why something is in error -----------------------------------------------------------------
-
-
-def error_reason(events: Iterable[Event], kind: str, subject: str) -> str:
-    """Why `subject` (an operation or intention, by `kind`) last went to error ("" if the
-    recent events do not say)."""
-    reason = ""
-    for event in events:
-        if event.kind == kind and event.subject == subject and event.detail.get("after") == "error":
-            reason = str(event.detail.get("why", ""))
-    return reason
-
-
-def last_event(events: Sequence[Event], kind: str, subject: str = "") -> Event | None:
-    for event in reversed(events):
-        if event.kind == kind and (not subject or event.subject == subject):
-            return event
-    return None
 
 
 # -- the station overview ----------------------------------------------------------------------
@@ -374,69 +362,67 @@ class StateRow:
 
     name: str
     description: str
-    state: str  # i, e, f, error
-    why: str = ""  # the reason it went to error, from the recent events
+    state: IntentionState | OperationState
+    why: str = ""  # the first cause of its error (kept in the runner's state)
     failures: int = 0
     armed: bool = False  # intention: starts by itself when its precondition holds
     resetting: bool = False  # operation: being reset in restart mode
 
+    @property
+    def idle(self) -> bool:
+        return self.state in (IntentionState.INITIAL, OperationState.INITIAL)
 
-def intention_rows(
-    station: Station, states: Mapping[str, str], armed: Iterable[str], events: Sequence[Event]
-) -> list[StateRow]:
-    starting = set(armed)
-    return [
-        StateRow(
-            i.name,
-            i.description,
-            states.get(i.name, "i"),
-            error_reason(events, "intention", i.name) if states.get(i.name) == "error" else "",
-            armed=i.name in starting,
+    @property
+    def running(self) -> bool:
+        return self.state in (IntentionState.EXECUTING, OperationState.EXECUTING)
+
+    @property
+    def failed(self) -> bool:
+        return self.state in (IntentionState.ERROR, OperationState.ERROR)
+
+
+def intention_rows(station: Station, state: RunnerState) -> list[StateRow]:
+    rows = []
+    for intention in station.intentions:
+        name = intention.name
+        current = state.intentions.get(name, IntentionState.INITIAL)
+        why = state.intention_causes.get(name, "") if current == IntentionState.ERROR else ""
+        armed = name in state.auto_start
+        rows.append(StateRow(name, intention.description, current, why, armed=armed))
+    return rows
+
+
+def operation_rows(station: Station, state: RunnerState) -> list[StateRow]:
+    rows = []
+    for operation in station.operations:
+        name = operation.name
+        current = state.operations.get(name, OperationState.INITIAL)
+        why = state.operation_causes.get(name, "") if current == OperationState.ERROR else ""
+        failures = state.failures.get(name, 0)
+        resetting = name in state.resetting
+        rows.append(
+            StateRow(name, operation.description, current, why, failures, resetting=resetting)
         )
-        for i in station.intentions
-    ]
-
-
-def operation_rows(
-    station: Station,
-    states: Mapping[str, str],
-    failures: Mapping[str, int],
-    resets: Iterable[str],
-    events: Sequence[Event],
-) -> list[StateRow]:
-    resetting = set(resets)
-    return [
-        StateRow(
-            o.name,
-            o.description,
-            states.get(o.name, "i"),
-            error_reason(events, "operation", o.name) if states.get(o.name) == "error" else "",
-            failures.get(o.name, 0),
-            resetting=o.name in resetting,
-        )
-        for o in station.operations
-    ]
+    return rows
 
 
 # -- the simulation panel ----------------------------------------------------------------------
 
 
-def fault_words(kind: str, resource: str, effect: str, instead: str, count: int,
-                values: Mapping[str, Value]) -> str:  # fmt: skip
-    """A simulated fault (hw.sim.Fault's fields) in plain words."""
-    times = "" if count == 1 else f" ({count} times)"
-    match kind:
-        case "disconnect":
-            return f"{resource} stops answering"
-        case "reconnect":
-            return f"{resource} answers again"
-        case "block_effect":
-            return f"{effect} never happens"
-        case "unblock_effect":
-            return f"{effect} happens again"
-        case "replace_effect":
-            return f"{instead} happens instead of {effect}{times}"
-        case "set":
-            changes = ", ".join(f"{n} := {format_value(v)}" for n, v in values.items())
+def fault_words(fault: Fault) -> str:
+    """A simulated fault in plain words."""
+    times = "" if fault.count == 1 else f" ({fault.count} times)"
+    match fault.kind:
+        case FaultKind.DISCONNECT:
+            return f"{fault.resource} stops answering"
+        case FaultKind.RECONNECT:
+            return f"{fault.resource} answers again"
+        case FaultKind.BLOCK_EFFECT:
+            return f"{fault.effect} never happens"
+        case FaultKind.UNBLOCK_EFFECT:
+            return f"{fault.effect} happens again"
+        case FaultKind.REPLACE_EFFECT:
+            return f"{fault.instead} happens instead of {fault.effect}{times}"
+        case FaultKind.SET:
+            changes = ", ".join(f"{n} := {format_value(v)}" for n, v in fault.values.items())
             return f"someone changes the world by hand: {changes}"
-    return kind

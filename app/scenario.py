@@ -15,27 +15,32 @@ from typing import Any
 
 import yaml
 
-from hw.sim import FAULTS, Fault, SimulatedWorld
+from app.station_cycle import ScheduledAction, ScheduledFault, StationCycle, due
+from hw.faults import FAULTS, Fault, FaultKind
+from hw.sim import SimulatedWorld
 from planner.expressions import Expr, Value, parse_expr
 from planner.loading import scope_for
 from planner.operation_planner import OperationPlanner
-from planner.runner import Runner, RunnerState
-from planner.runner_io import (
+from planner.runner import (
     Action,
     Approve,
     CancelIntention,
     EnterRestart,
     Event,
-    Inputs,
+    EventKind,
+    IntentionState,
     LeaveRestart,
     MaintenanceDone,
     ReenableEffect,
     Reject,
     ResetOperation,
+    Runner,
     RunnerConfig,
+    RunnerState,
     SetEstimated,
     StartIntention,
 )
+from planner.runner.queries import QueryObserver
 from planner.station import Station
 from planner.transition_planner import TransitionPlanner
 
@@ -77,21 +82,6 @@ _ACTIONS: dict[str, tuple[type[Action], tuple[str, ...]]] = {
 
 class ScenarioError(Exception):
     """A scenario file that cannot be used; the message names the file and the entry."""
-
-
-@dataclass(frozen=True)
-class ScheduledFault:
-    fault: Fault
-    at: float | None = None
-    when: Expr | None = None
-    text: str = ""
-
-
-@dataclass(frozen=True)
-class ScheduledAction:
-    action: Action
-    at: float | None = None
-    when: Expr | None = None
 
 
 @dataclass(frozen=True)
@@ -251,7 +241,7 @@ def _read(data: Any, file: str, station: Station) -> Scenario:
             )
         when = _when(entry, where, scope)
         fault = Fault(
-            kind,
+            FaultKind(kind),
             resource=str(entry.get("resource", "")),
             effect=str(entry.get("effect", "")),
             instead=str(entry.get("instead", "")),
@@ -347,78 +337,57 @@ def play(
     stopwatch: Callable[[], float] | None = None,
     sleep: Callable[[float], None] = time.sleep,
     watch: Callable[[RunnerState], None] | None = None,
+    observer: QueryObserver | None = None,
 ) -> Iterator[Event]:
     """Run the scenario; yields events. `speed` 0 runs as fast as possible, 1 in real time.
 
-    `watch` sees the runner's state after every tick (for tests and monitors).
+    `watch` sees the runner's state after every tick (for tests and monitors); `observer`
+    sees every planning query (for benchmarks).
     """
-    runner = Runner(station, planners.transition, planners.operation, scenario.config, stopwatch)
+    runner = Runner(
+        station, planners.transition, planners.operation, scenario.config, stopwatch, observer
+    )
     world = SimulatedWorld(
         station, delays=scenario.delays, default_delay=scenario.default_delay, start=scenario.start
     )
     now = 0.0
-    state: RunnerState = runner.initial(now, scenario.start)
-    pending = list(scenario.faults)
-    scheduled_actions = list(scenario.actions)
-    answers: list[tuple[float, Action]] = []  # the simulated operator's actions, when due
-    published: dict[str, Value] = dict(state.values)
+    cycle = StationCycle(runner, world, runner.initial(now, scenario.start), list(scenario.faults))
+    scheduled = list(scenario.actions)
+    answers: list[tuple[float, Action]] = []  # people's actions, when due
     while now <= scenario.until:
-        for scheduled in [f for f in pending if due(f, now, runner, state.values)]:
-            pending.remove(scheduled)
-            world.inject(scheduled.fault)
-            yield Event(now, "fault", scheduled.fault.kind, {"fault": scheduled.text})
-        world.advance(published, now)
-        for scheduled_action in [a for a in scheduled_actions if due(a, now, runner, state.values)]:
-            scheduled_actions.remove(scheduled_action)
-            answers.append((now, scheduled_action.action))
+        for planned in [a for a in scheduled if due(a, now, runner, cycle.state.values)]:
+            scheduled.remove(planned)
+            answers.append((now, planned.action))
         actions = tuple(a for t, a in answers if t <= now)
         answers = [(t, a) for t, a in answers if t > now]
-        for action in actions:
-            if isinstance(action, MaintenanceDone):
-                world.maintenance(action.transition)
-        report = world.report()
-        inputs = Inputs(report.measured, report.observed, report.heartbeats, actions)
-        state, _commands, events = runner.tick(state, inputs, now)
-        published = dict(state.values)
+        result = cycle.step(now, actions)
         if watch is not None:
-            watch(state)
-        for event in events:
+            watch(cycle.state)
+        for event in result.events:
             answers.extend(_operator_answers(event, scenario, now))
             yield event
-        if _finished(state, scenario):
-            yield Event(now, "done", "all intentions finished")
+        if _finished(cycle.state, scenario):
+            yield Event(now, EventKind.DONE, "all intentions finished")
             return
         now = round(now + step, 6)
         if speed > 0:
             sleep(step / speed)
-    yield Event(now, "stopped", "time limit", {"until": scenario.until})
-
-
-def due(
-    scheduled: ScheduledFault | ScheduledAction,
-    now: float,
-    runner: Runner,
-    values: Mapping[str, Value],
-) -> bool:
-    """Its time has come, or its condition holds now."""
-    if scheduled.at is not None and now >= scheduled.at:
-        return True
-    return scheduled.when is not None and runner.holds(scheduled.when, values)
+    yield Event(now, EventKind.STOPPED, "time limit", {"until": scenario.until})
 
 
 def _operator_answers(event: Event, scenario: Scenario, now: float) -> list[tuple[float, Action]]:
     """What the simulated operator does about an event, and when."""
     delay = scenario.operator_delay
-    if event.kind == "approval" and scenario.approve:
+    if event.kind is EventKind.APPROVAL and scenario.approve:
         out: list[tuple[float, Action]] = [(now + delay, Approve(step=int(event.detail["step"])))]
         if event.detail.get("type") == "maintenance" and scenario.maintenance:
             out.append((now + 2 * delay, MaintenanceDone(transition=event.subject)))
         return out
-    if event.kind == "instruction" and scenario.maintenance:
+    if event.kind is EventKind.INSTRUCTION and scenario.maintenance:
         return [(now + delay, MaintenanceDone(transition=event.subject))]
     return []
 
 
 def _finished(state: RunnerState, scenario: Scenario) -> bool:
     names = scenario.intentions if scenario.intentions is not None else tuple(state.intentions)
-    return bool(names) and all(state.intentions[n] == "f" for n in names)
+    return bool(names) and all(state.intentions[n] == IntentionState.FINISHED for n in names)

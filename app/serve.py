@@ -17,8 +17,9 @@ from fastapi import FastAPI
 
 from app import supervisor_cache
 from app.auth import ApiTokens, secret_key, seed_demo_users
-from app.live_station import LiveStation, build_model
+from app.live_station import LiveStation
 from app.scenario import Scenario, ScenarioError, load_scenario
+from app.station_view import build_model
 from app.store import versions
 from app.store.db import Store, open_store
 from app.views import task_cards
@@ -63,7 +64,7 @@ def build(
         store, name, model, simulated=simulated, period=period, clock=_scaled_clock(speed)
     )
     # the task page shows the cards, and restart mode when there are none
-    live.watch_area("tasks", lambda view: (task_cards(view), view.state.restart))
+    live.watch_area("tasks", lambda view: (task_cards(view), view.state.restart_mode))
     server = Server(
         store,
         live,

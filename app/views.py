@@ -7,23 +7,26 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
+from enum import StrEnum
 
-from app.live_station import StationView
-from app.plan_view import error_reason
+from app.station_view import StationView
 from planner.model import TransitionKind
-from planner.runner import TransitionPlan
+from planner.runner import OperationState, TransitionPlan
+
+
+class CardKind(StrEnum):
+    """What a task card asks of a person."""
+
+    COMMAND = "command"  # the watch card of an operation: tap Done when done
+    INSTRUCTION = "instruction"  # a maintenance step after an error: do it, then Done
+    APPROVAL = "approval"  # a forbidden-state recovery step: approve or reject it first
 
 
 @dataclass(frozen=True)
 class TaskCard:
-    """One thing a person must do now, with one action.
+    """One thing a person must do now, with one action."""
 
-    kind: "command" (the watch card of an operation: tap Done when done), "instruction"
-    (a maintenance step after an error: do it, then Done), "approval" (a forbidden-state
-    recovery step: approve or reject before anything runs).
-    """
-
-    kind: str
+    kind: CardKind
     key: str  # stable, for the page's DOM and the tests
     title: str
     why: str
@@ -51,7 +54,8 @@ _REFERENCE = re.compile(r"\s*\((?:seed \d+[^)]*|E\d[^)]*)\)")
 
 def _executing(view: StationView) -> list[str]:
     ops = view.model.station.operations
-    return [o.description or o.name for o in ops if view.state.operations.get(o.name) == "e"]
+    executing = set(view.state.operations_in(OperationState.EXECUTING))
+    return [o.description or o.name for o in ops if o.name in executing]
 
 
 def _command_cards(view: StationView) -> list[TaskCard]:
@@ -67,13 +71,13 @@ def _command_cards(view: StationView) -> list[TaskCard]:
     else:
         title = sentence(str(card).replace("_", " "))
     why = "; ".join(_executing(view)) or "the operation plan asks for it"
-    return [TaskCard("command", f"card-{card}", title, sentence(why), card=str(card))]
+    return [TaskCard(CardKind.COMMAND, f"card-{card}", title, sentence(why), card=str(card))]
 
 
 def _instructions(view: StationView) -> list[TaskCard]:
     s = view.state
     cards = []
-    plans: list[tuple[TransitionPlan | None, str]] = [(s.maintenance, s.maintained)]
+    plans: list[tuple[TransitionPlan | None, str]] = [(s.maintenance, s.maintenance_for)]
     for plan, operation in plans:
         if plan is None:
             continue
@@ -83,7 +87,7 @@ def _instructions(view: StationView) -> list[TaskCard]:
             name = plan.blocks[k].transition
             cards.append(
                 TaskCard(
-                    "instruction",
+                    CardKind.INSTRUCTION,
                     f"maintenance-{name}",
                     sentence(describe(view, name)),
                     failed,
@@ -100,7 +104,7 @@ def _instructions(view: StationView) -> list[TaskCard]:
             if view.model.station.model.transition(name).kind is TransitionKind.MAINTENANCE:
                 cards.append(
                     TaskCard(
-                        "instruction",
+                        CardKind.INSTRUCTION,
                         f"recovery-{name}",
                         sentence(describe(view, name)),
                         "Approved step of the recovery from a forbidden state",
@@ -123,7 +127,7 @@ def _approvals(view: StationView) -> list[TaskCard]:
         who = "You will" if kind is TransitionKind.MAINTENANCE else "The station will"
         cards.append(
             TaskCard(
-                "approval",
+                CardKind.APPROVAL,
                 f"approval-{k}",
                 sentence(describe(view, name)),
                 f"The station is in a forbidden state ({violated}). {who} do this step "
@@ -146,6 +150,6 @@ def _failure(view: StationView, operation: str) -> str:
     if not operation:
         return "An error needs your hands"
     description = view.model.station.operation(operation).description or operation
-    reason = error_reason(view.events, "operation", operation)
+    reason = view.state.operation_causes.get(operation, "")
     text = f"Failed: {sentence(description)[:1].lower()}{sentence(description)[1:]}"
     return f"{text} ({reason})" if reason else text

@@ -49,7 +49,7 @@ from unittest import mock
 
 from bench import cells, process
 from bench.planning import machine
-from planner.runner_io import Event
+from planner.runner import Event
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "bench" / "results"
@@ -188,12 +188,6 @@ def taken_table(rows: list[Experiment]) -> str:
 BENCH_SCENARIOS = ROOT / "bench" / "scenarios"  # not models/scenarios: these need not finish
 QUERY_MEDIAN_TARGET_MS = 50.0  # issue 11: every recovery query of the runner, median ...
 QUERY_MAX_TARGET_MS = 500.0  # ... and max
-# queries the runner makes without a plan event, by the runner method that makes them
-UNANNOUNCED = {
-    "plan_transitions": "which executing operations fail, one at a time",
-    "plan_operations": "which intentions fail, one at a time",
-    "recheck": "background check of an error",
-}
 
 
 @dataclass(frozen=True)
@@ -231,57 +225,40 @@ class Play:
     since_last: float = 0.0  # at a cut with no query running: wall s since the last started
     wall: float = 0.0
     error: str = ""
-    hooked: bool = True  # unannounced queries were measured
 
     def recovery(self) -> list[Query]:
         return [q for q in self.queries if q.recovery]
 
 
-def report_queries(emit: Callable[[dict[str, Any]], None]) -> None:
-    """Report every planning query of the runner as it starts and as it ends.
+class QueryReporter:
+    """Reports every planning query of the runner as it starts and as it ends (a
+    `planner.runner.queries.QueryObserver`), and which were announced by a plan event.
+    A query that starts and never ends shows where a cut-off play hung."""
 
-    Wraps the runner's query stopwatch `_Tick.timed` (planner/runner.py), through which the
-    runner makes every query, and `_Tick.emit_plan`, which marks the last one as announced by
-    a plan event. A query that starts and never ends shows where a cut-off play hung.
-    """
-    from planner import runner as runner_module
+    def __init__(self, emit: Callable[[dict[str, Any]], None]) -> None:
+        self.emit = emit
+        self.numbers = itertools.count()
+        self.last = -1
 
-    tick = getattr(runner_module, "_Tick", None)
-    timed = getattr(tick, "timed", None)
-    emit_plan = getattr(tick, "emit_plan", None)
-    if tick is None or timed is None or emit_plan is None:
-        emit({"bench": "unhooked", "why": "planner.runner._Tick has no timed/emit_plan"})
-        return
-    numbers = itertools.count()
-    last = [-1]
-
-    def hooked_timed(self: Any, plan: Callable[..., Any], query: Any) -> Any:
-        number = next(numbers)
-        runner = getattr(self, "r", None)
-        planner = "OP" if getattr(plan, "__self__", None) is getattr(runner, "op", 0) else "TP"
-        caller = sys._getframe(1).f_code.co_name
-        emit(
+    def asked(self, now: float, level: Any, purpose: str) -> None:
+        self.last = next(self.numbers)
+        self.emit(
             {
                 "bench": "query",
-                "id": number,
-                "time": getattr(self, "now", math.nan),
-                "planner": planner,
-                "caller": caller,
+                "id": self.last,
+                "time": now,
+                "planner": str(level),
+                "purpose": purpose,
                 "clock": time.time(),  # wall clock: the parent compares it with its own
             }
         )
-        result, millis = timed(self, plan, query)
+
+    def answered(self, result: Any, millis: float | None) -> None:
         status = getattr(getattr(result, "status", None), "value", "?")
-        emit({"bench": "answer", "id": number, "status": status, "millis": millis})
-        last[0] = number
-        return result, millis
+        self.emit({"bench": "answer", "id": self.last, "status": status, "millis": millis})
 
-    def hooked_emit_plan(self: Any, *args: Any, **kwargs: Any) -> Any:
-        emit({"bench": "announced", "id": last[0]})
-        return emit_plan(self, *args, **kwargs)
-
-    tick.timed = hooked_timed
-    tick.emit_plan = hooked_emit_plan
+    def announced(self) -> None:
+        self.emit({"bench": "announced", "id": self.last})
 
 
 def child_play(model: Path, scenario: Path) -> int:
@@ -292,9 +269,8 @@ def child_play(model: Path, scenario: Path) -> int:
     def emit(record: dict[str, Any]) -> None:
         print(json.dumps(record), flush=True)
 
-    report_queries(emit)
     command = ["run", str(model), "--scenario", str(scenario), "--speed", "0", "--json"]
-    return sp([*command, "--quiet"])
+    return sp([*command, "--quiet"], observer=QueryReporter(emit))
 
 
 def read_play(lines: Sequence[str], scenario: str, until: float, cut: float | None) -> Play:
@@ -322,8 +298,6 @@ def read_play(lines: Sequence[str], scenario: str, until: float, cut: float | No
                 answers[record["id"]] = record
             elif bench == "announced":
                 announced.add(record["id"])
-            elif bench == "unhooked":
-                play.hooked = False
             continue
         kind = record.get("kind")
         play.end_time = max(play.end_time, float(record.get("time", 0.0)))
@@ -348,7 +322,7 @@ def read_play(lines: Sequence[str], scenario: str, until: float, cut: float | No
     for number, query in started.items():
         if number in announced:
             continue
-        what = f"{query['planner']}, in the runner's `{query['caller']}`"
+        what = f"{query['planner']}: {query['purpose']}"
         if number not in answers:
             if cut is not None:
                 play.running = (what, float(query["time"]), cut - float(query["clock"]))
@@ -358,7 +332,7 @@ def read_play(lines: Sequence[str], scenario: str, until: float, cut: float | No
             Query(
                 float(query["time"]),
                 str(query["planner"]),
-                UNANNOUNCED.get(query["caller"], f"asked by {query['caller']}"),
+                str(query["purpose"]),
                 str(answer["status"]),
                 float(answer["millis"] or 0.0),
                 announced=False,
@@ -508,11 +482,7 @@ def queries_table(rows: Sequence[Sequence[Play]]) -> str:
         counts = (
             f"{spread([len(p.queries) for p in plays])} "
             f"({spread([len(p.recovery()) for p in plays])}; "
-            + (
-                spread([sum(not q.announced for q in p.queries) for p in plays])
-                if all(p.hooked for p in plays)
-                else "not measured"
-            )
+            + spread([sum(not q.announced for q in p.queries) for p in plays])
             + ")"
         )
         slowest = max(everything, key=lambda q: q.millis) if everything else None
@@ -614,8 +584,14 @@ def drive(
     without `cycle`, the last one finished.
     """
     from hw.sim import SimulatedWorld
-    from planner.runner import Runner
-    from planner.runner_io import Inputs, RunnerConfig, StartIntention
+    from planner.runner import (
+        EventKind,
+        Inputs,
+        IntentionState,
+        Runner,
+        RunnerConfig,
+        StartIntention,
+    )
 
     base = config or RunnerConfig()
     runner = Runner(
@@ -628,13 +604,15 @@ def drive(
     world = SimulatedWorld(station, delays=delays, default_delay=default_delay, start=start)
     now = 0.0
     state = runner.initial(now, start)
-    published = dict(state.values)
     current = -1
     for k in range(ticks):
-        world.advance(published, now)
-        report = world.report()
+        world.write(runner.commands(state))
+        world.follow_estimates(state.values)
+        world.advance(now)
+        report = world.read()
         actions: tuple[Any, ...] = ()
-        if k >= idle and (current < 0 or state.intentions[intentions[current]] == "f"):
+        finished = current >= 0 and state.intentions[intentions[current]] == IntentionState.FINISHED
+        if k >= idle and (current < 0 or finished):
             if current + 1 >= len(intentions) and not cycle:
                 return
             current = (current + 1) % len(intentions)
@@ -644,12 +622,14 @@ def drive(
         if profiler is not None:
             profiler.enable()
         started = time.perf_counter()
-        state, _commands, events = runner.tick(state, inputs, now)
+        result = runner.tick(state, inputs, now)
         millis = (time.perf_counter() - started) * 1000
         if profiler is not None:
             profiler.disable()
-        published = dict(state.values)
-        plans = tuple((e.subject, e.millis or 0.0) for e in events if e.kind == "plan")
+        state = result.state
+        plans = tuple(
+            (e.subject, e.millis or 0.0) for e in result.events if e.kind is EventKind.PLAN
+        )
         yield Tick("idle" if current < 0 else "running", millis, plans, profiler)
         now = round(now + step, 6)
 

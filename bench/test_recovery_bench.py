@@ -17,7 +17,6 @@ from app.scenario import ScenarioError, load_scenario
 from bench.runner import (
     BENCH_SCENARIOS,
     DEMO,
-    UNANNOUNCED,
     describe_end,
     play_scenarios,
     queries_table,
@@ -115,15 +114,16 @@ def test_a_short_play_in_a_child_process_becomes_a_row_of_the_table(tmp_path: Pa
     [plays] = rows
     assert len(plays) == 2  # neither was cut off
     for play in plays:
-        assert play.end == "stopped" and play.end_time == pytest.approx(5.1) and play.hooked
+        assert play.end == "stopped" and play.end_time == pytest.approx(5.1)
         announced = [q.label for q in play.queries if q.announced]
         assert announced == ["OP", "TP", "TP", "TP w/ETO", "OP w/DO", "TP w/ETO w/MT"]
         assert [q.recovery for q in play.queries if q.announced] == [False] * 3 + [True] * 3
         unannounced = [q for q in play.queries if not q.announced]
         assert {q.reason for q in unannounced} == {
-            UNANNOUNCED["plan_transitions"],
-            UNANNOUNCED["plan_operations"],
-            UNANNOUNCED["recheck"],
+            "which operations fail",
+            "which intentions fail",
+            "background check of an operation",
+            "background check of an intention",
         }
         assert all(q.recovery and q.millis > 0 for q in unannounced)
         assert [q.time for q in play.queries] == sorted(q.time for q in play.queries)
@@ -141,20 +141,20 @@ def test_a_short_play_in_a_child_process_becomes_a_row_of_the_table(tmp_path: Pa
 
 
 def test_a_play_cut_off_in_a_query_names_it_and_keeps_what_it_completed() -> None:
-    def started(number: int, at: float, planner: str, caller: str, clock: float) -> dict[str, Any]:
-        return {"bench": "query", "id": number, "time": at, "planner": planner, "caller": caller,
+    def started(number: int, at: float, planner: str, purpose: str, clock: float) -> dict[str, Any]:
+        return {"bench": "query", "id": number, "time": at, "planner": planner, "purpose": purpose,
                 "clock": clock}  # fmt: skip
 
     plan = {"kind": "plan", "subject": "TP w/MT", "reason": "forbidden state", "status": "found"}
     records = [
         {"time": 0.0, "kind": "fault", "subject": "set"},
-        started(0, 1.0, "TP", "recover", 100.0),
+        started(0, 1.0, "TP", "forbidden-state recovery", 100.0),
         {"bench": "answer", "id": 0, "status": "found", "millis": 12.5},
         {"bench": "announced", "id": 0},
         {"time": 1.0, **plan, "millis": 12.5},
-        started(1, 1.0, "OP", "recheck", 100.0),
+        started(1, 1.0, "OP", "background check of an intention", 100.0),
         {"bench": "answer", "id": 1, "status": "unreachable", "millis": 3.0},
-        started(2, 1.1, "TP", "recover", 101.0),
+        started(2, 1.1, "TP", "forbidden-state recovery", 101.0),
     ]
     lines = [json.dumps(r) for r in records] + ['{"bench": "answ']  # the line cut by the kill
     play = read_play(lines, "hangs", 60.0, cut=131.0)
@@ -162,11 +162,11 @@ def test_a_play_cut_off_in_a_query_names_it_and_keeps_what_it_completed() -> Non
     assert play.end == "cut off" and play.end_time == 1.1
     assert [(q.label, q.reason, q.announced) for q in play.queries] == [
         ("TP w/MT", "forbidden state", True),
-        ("OP", UNANNOUNCED["recheck"], False),
+        ("OP", "background check of an intention", False),
     ]
-    assert play.running == ("TP, in the runner's `recover`", 1.1, 30.0)
+    assert play.running == ("TP: forbidden-state recovery", 1.1, 30.0)
     assert describe_end(play) == (
         "**cut off** after 31 s wall, at 1.1 s of 60 s simulated: the next query "
-        "(TP, in the runner's `recover`, at 1.1 s) ran over 30.0 s without finishing"
+        "(TP: forbidden-state recovery, at 1.1 s) ran over 30.0 s without finishing"
     )
     assert target([play]) == "**not met**: a query ran over 30.0 s"

@@ -9,7 +9,7 @@ from app.scenario import Planners
 from bench import cells
 from bench.runner import drive, match_paper
 from planner.operation_planner import OperationPlanner
-from planner.runner_io import Event
+from planner.runner import Event
 from planner.station import load_station
 from planner.transition_planner import TransitionPlanner
 

@@ -11,36 +11,18 @@ is deterministic: the same commands and faults at the same times give the same r
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
 
+from hw.devices import DeviceReport
+from hw.faults import FAULTS, Fault, FaultKind
 from planner.expressions import Value
 from planner.model import TransitionKind, VariableKind
-from planner.runner_io import Inputs
 from planner.semantics import Semantics
 from planner.station import Station
 
-FAULTS = (
-    "disconnect",  # a resource stops answering; its measurements freeze (E5-E7)
-    "reconnect",
-    "block_effect",  # an effect never happens (a broken lock or release mechanism: E3, E4)
-    "unblock_effect",
-    "replace_effect",  # the next `count` times, another effect happens instead (E8, E9)
-    "set",  # a person changes the world: a part moved, mounted or undone by hand (E1, E2)
-)
-
-
-@dataclass(frozen=True)
-class Fault:
-    kind: str
-    resource: str = ""
-    effect: str = ""
-    instead: str = ""
-    count: int = 1
-    values: Mapping[str, Value] = field(default_factory=dict)
-
 
 class SimulatedWorld:
-    """Devices and products of a station, simulated from its model's effects."""
+    """Devices and products of a station, simulated from its model's effects (it is
+    `hw.devices.Devices` and a `hw.devices.ModelSimulation`)."""
 
     def __init__(
         self,
@@ -86,17 +68,17 @@ class SimulatedWorld:
 
     def inject(self, fault: Fault) -> None:
         match fault.kind:
-            case "disconnect":
+            case FaultKind.DISCONNECT:
                 self.disconnected.add(fault.resource)
-            case "reconnect":
+            case FaultKind.RECONNECT:
                 self.disconnected.discard(fault.resource)
-            case "block_effect":
+            case FaultKind.BLOCK_EFFECT:
                 self.blocked.add(fault.effect)
-            case "unblock_effect":
+            case FaultKind.UNBLOCK_EFFECT:
                 self.blocked.discard(fault.effect)
-            case "replace_effect":
+            case FaultKind.REPLACE_EFFECT:
                 self.replaced[fault.effect] = (fault.instead, fault.count)
-            case "set":
+            case FaultKind.SET:
                 for name, value in fault.values.items():
                     self.values[name] = value
                     if name not in self.measured:
@@ -104,7 +86,7 @@ class SimulatedWorld:
             case _:
                 raise ValueError(f"unknown fault '{fault.kind}'; use one of {', '.join(FAULTS)}")
 
-    def maintenance(self, transition: str) -> None:
+    def maintenance_done(self, transition: str) -> None:
         """The operator has done maintenance transition `transition` in the physical world."""
         chosen = self.semantics.by_name[transition]
         after = self.semantics.values(chosen.apply(self.semantics.state(self.values)))
@@ -158,11 +140,21 @@ class SimulatedWorld:
         if isinstance(pending, Mapping):
             self.pending = {k: now + float(t) for k, t in pending.items() if k in effects}
 
-    def advance(self, published: Mapping[str, Value], now: float) -> None:
-        """Let the devices act on the runner's published state up to time `now`."""
-        for name, value in published.items():
-            if name not in self.measured and name not in self.observed:
+    def write(self, commands: Mapping[str, Value]) -> None:
+        """The runner's command values: what the devices are told to do."""
+        for name, value in commands.items():
+            if name in self.values and name not in self.measured:
                 self.values[name] = value
+
+    def follow_estimates(self, values: Mapping[str, Value]) -> None:
+        """The runner's estimated and decision values, which the model's effect guards read;
+        a product state a person changed and the runner has not been told of yet stays."""
+        for name, value in values.items():
+            if name in self.values and name not in self.measured and name not in self.observed:
+                self.values[name] = value
+
+    def advance(self, now: float) -> None:
+        """Let the devices act on the last commands up to time `now`."""
         for _ in range(len(self.effects) + 1):
             state = self.semantics.state(self.values)
             due = None
@@ -191,7 +183,7 @@ class SimulatedWorld:
             for name in self.measured:
                 self.values[name] = after[name]
 
-    def report(self) -> Inputs:
+    def read(self) -> DeviceReport:
         """Measurements and heartbeats of the connected resources, and observed product states."""
         frozen: set[str] = set()
         for resource in self.disconnected:
@@ -199,7 +191,7 @@ class SimulatedWorld:
         measured = {n: self.values[n] for n in sorted(self.measured) if n not in frozen}
         observed, self.observed = self.observed, {}
         heartbeats = frozenset(r.name for r in self.station.resources) - self.disconnected
-        return Inputs(measured=measured, observed=observed, heartbeats=heartbeats)
+        return DeviceReport(measured=measured, observed=observed, heartbeats=heartbeats)
 
 
 def _strings(value: object) -> list[str]:

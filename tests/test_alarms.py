@@ -437,7 +437,7 @@ def test_timeouts_halts_and_lost_resources_are_alarms_with_their_resource(
     runner = Runner(station, planners.transition, planners.operation)
     state = runner.initial()
     assert conditions(runner, state) == {}
-    effect = runner.effects[0].name
+    effect = runner.index.effects[0].name
     state.timed_out.add(effect)
     state.unavailable.add("nr")
     state.halted = "automatic transitions cycle"
@@ -449,7 +449,7 @@ def test_timeouts_halts_and_lost_resources_are_alarms_with_their_resource(
         "halted": (Priority.CRITICAL, ""),
         "resource:nr": (Priority.HIGH, "nr"),
         "operation:tighten_bp1": (Priority.MEDIUM, "nr"),
-        f"effect:{effect}": (Priority.LOW, runner.owner[effect]),
+        f"effect:{effect}": (Priority.LOW, runner.index.owner[effect]),
     }
     assert "did not happen in time" in found[f"effect:{effect}"].message
     assert "is not retried" in found["operation:tighten_bp1"].message

@@ -15,7 +15,7 @@ from tests.test_browser_operator import screenshot, sign_in
 def test_auditor_filters_the_log_and_exports_csv(served: RunningStation, desktop: Any) -> None:  # noqa: F811
     page = desktop
     sign_in(page, served, "engineer")  # some history: a sign-in, a password change, an action
-    from planner.runner_io import StartIntention
+    from planner.runner import StartIntention
 
     served.live.act(StartIntention(user="engineer", name="assemble_engine")).result(10)
     page.context.clear_cookies()

@@ -80,6 +80,6 @@ def test_engineer_edits_the_model_sees_the_error_located_fixes_and_activates(
 
 
 def _start(name: str) -> Any:
-    from planner.runner_io import StartIntention
+    from planner.runner import StartIntention
 
     return StartIntention(user="engineer", name=name)

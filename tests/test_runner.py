@@ -5,7 +5,6 @@ from __future__ import annotations
 import copy
 from dataclasses import replace as replace_dataclass
 from pathlib import Path
-from typing import Any
 
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -15,24 +14,26 @@ from app.scenario import (
     Planners,
     Scenario,
     ScenarioError,
-    ScheduledFault,
     load_scenario,
     play,
 )
-from hw.sim import Fault
+from app.station_cycle import ScheduledFault
+from hw.faults import Fault, FaultKind
 from planner.expressions import Value, format_expr
 from planner.operation_planner import OperationPlanner
-from planner.runner import Runner, RunnerState, _Tick
-from planner.runner_io import (
+from planner.runner import (
     Action,
     EnterRestart,
     Event,
     Inputs,
     LeaveRestart,
     ResetOperation,
+    Runner,
     RunnerConfig,
+    RunnerState,
     SetEstimated,
 )
+from planner.runner.tick import Tick
 from planner.station import Station, load_station
 from planner.transition_planner import TransitionPlanner
 from tests.oracle import OracleModel, parse_model, state_from_dict
@@ -236,7 +237,8 @@ def tick(
     runner = Runner(station, planners.transition, planners.operation, config)
     state = state if state is not None else runner.initial(now)
     everyone = frozenset(r.name for r in station.resources)
-    state, _, events = runner.tick(state, Inputs(heartbeats=everyone, actions=actions), now)
+    result = runner.tick(state, Inputs(heartbeats=everyone, actions=actions), now)
+    state, events = result.state, list(result.events)
     return state, events
 
 
@@ -308,30 +310,33 @@ def test_an_automatic_cycle_is_reported_and_halted_not_looped() -> None:
         RunnerConfig(max_automatic_steps=50),
     )
     state = runner.initial(0.0, {"lamp.armed": True})
-    state, _, events = runner.tick(state, Inputs(heartbeats=frozenset({"lamp"})), 0.1)
+    result = runner.tick(state, Inputs(heartbeats=frozenset({"lamp"})), 0.1)
+    state, events = result.state, list(result.events)
     errors = [e for e in events if e.kind == "error"]
     assert [e.subject for e in errors] == ["automatic cycle"]
     assert len([e for e in events if e.kind == "taken"]) == 50
     assert state.halted
-    state, _, events = runner.tick(state, Inputs(heartbeats=frozenset({"lamp"})), 0.2)
+    result = runner.tick(state, Inputs(heartbeats=frozenset({"lamp"})), 0.2)
+    state, events = result.state, list(result.events)
     assert not [e for e in events if e.kind == "taken"]  # halted: nothing more is taken
 
 
 # -- safety under random faults ----------------------------------------------------------------
 
+DISCONNECT, BLOCK, REPLACE = FaultKind.DISCONNECT, FaultKind.BLOCK_EFFECT, FaultKind.REPLACE_EFFECT
 FAULTS = [
-    Fault("disconnect", resource="r1"),
-    Fault("disconnect", resource="r2"),
-    Fault("disconnect", resource="nr"),
-    Fault("block_effect", effect="r1_tc.lock.connect"),
-    Fault("block_effect", effect="r2_tc.lock.connect"),
-    Fault("block_effect", effect="r1_tc.unlock.release"),
-    Fault("block_effect", effect="r1.goto.arrive"),
-    Fault("block_effect", effect="nr.run_nut.spin_up"),
-    Fault("replace_effect", effect="r1_cam.locate_tool.found", instead="r1_cam.locate_tool.miss"),
-    Fault("replace_effect", effect="nr.run_nut.torque", instead="nr.run_nut.torque_nok", count=2),
+    Fault(DISCONNECT, resource="r1"),
+    Fault(DISCONNECT, resource="r2"),
+    Fault(DISCONNECT, resource="nr"),
+    Fault(BLOCK, effect="r1_tc.lock.connect"),
+    Fault(BLOCK, effect="r2_tc.lock.connect"),
+    Fault(BLOCK, effect="r1_tc.unlock.release"),
+    Fault(BLOCK, effect="r1.goto.arrive"),
+    Fault(BLOCK, effect="nr.run_nut.spin_up"),
+    Fault(REPLACE, effect="r1_cam.locate_tool.found", instead="r1_cam.locate_tool.miss"),
+    Fault(REPLACE, effect="nr.run_nut.torque", instead="nr.run_nut.torque_nok", count=2),
 ]
-UNDO = {"disconnect": "reconnect", "block_effect": "unblock_effect"}
+UNDO = {DISCONNECT: FaultKind.RECONNECT, BLOCK: FaultKind.UNBLOCK_EFFECT}
 
 
 @st.composite
@@ -389,20 +394,16 @@ def test_no_runner_step_enters_a_forbidden_state_under_random_faults(
         ),
     )
     steps: list[dict[str, Value]] = []
-    original = _Tick.take, _Tick.automatic
+    original = Tick.set_values
 
-    def take(self: _Tick, *args: Any, **kwargs: Any) -> None:
-        original[0](self, *args, **kwargs)
-        steps.append(dict(self.state.values))
-
-    def automatic(self: _Tick) -> None:
-        original[1](self)
+    def set_values(self: Tick, state: tuple[Value, ...]) -> None:
+        """Every step the runner takes (controlled, automatic, maintenance) sets values here."""
+        original(self, state)
         steps.append(dict(self.state.values))
 
     states: list[RunnerState] = []
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(_Tick, "take", take)
-        patch.setattr(_Tick, "automatic", automatic)
+        patch.setattr(Tick, "set_values", set_values)
         events = list(play(station, scenario, planners, watch=states.append))
     assert steps and events
     tp = planners.transition
@@ -446,10 +447,10 @@ def test_a_tick_leaves_the_state_it_was_given_unchanged(demo: tuple[Station, Pla
     everyone = frozenset(r.name for r in station.resources)
     state = runner.initial(0.0)
     for k in range(1, 30):  # into the middle of a plan: intentions, operations, plans live
-        state, _, _ = runner.tick(state, Inputs(heartbeats=everyone), k / 10)
+        state = runner.tick(state, Inputs(heartbeats=everyone), k / 10).state
     assert state.operation_plan is not None and state.transition_plan is not None
     before = copy.deepcopy(state)
     inputs = Inputs(measured={"r1.pos": "scan", "r1.last": "scan"}, heartbeats=everyone)
     first = runner.tick(state, inputs, 3.0)
     assert state == before
-    assert runner.tick(state, inputs, 3.0)[0] == first[0]
+    assert runner.tick(state, inputs, 3.0).state == first.state

@@ -16,21 +16,28 @@ from app import supervisor_cache
 from app.scenario import Planners, Scenario, load_scenario, play
 from planner.operation_planner import OperationPlanner
 from planner.partial_order import Block
-from planner.runner import OperationPlan, Runner, RunnerState, TransitionPlan
-from planner.runner_io import Event, Inputs
-from planner.runner_snapshot import FORMAT, SnapshotError, dump, load
+from planner.runner import (
+    Event,
+    Inputs,
+    OperationPlan,
+    Runner,
+    RunnerState,
+    TickResult,
+    TransitionPlan,
+)
+from planner.runner.snapshot import FORMAT, STORED_AS, SnapshotError, dump, load
 from planner.station import Station, load_station
 
 ROOT = Path(__file__).resolve().parent.parent
 MODEL = ROOT / "models" / "demo_station.yaml"
 SCENARIOS = sorted((ROOT / "models" / "scenarios").glob("*.yaml"))
 E6 = "e6_r2_disconnects_above_engine"
-CACHES = {"watched", "settled", "consistent"}  # not stored: None after loading
-REBASED = {"heard", "effect_since", "next_recheck"}  # stored, but `now` after loading
+# not stored: None after loading
+CACHES = {"effects_watched_at", "automatics_settled_at", "invariants_held_at"}
 
 
 @dataclass
-class Tick:
+class TickRecord:
     inputs: Inputs
     now: float
     commands: dict[str, Any]
@@ -42,7 +49,7 @@ class Run:
     scenario: Scenario
     runner: Runner
     states: list[RunnerState]  # after each tick, as `play`'s watch saw them
-    ticks: list[Tick]
+    ticks: list[TickRecord]
 
 
 @pytest.fixture(scope="module")
@@ -59,19 +66,17 @@ def runs(demo: tuple[Station, Planners]) -> dict[str, Run]:
     """Every scenario played once, with what each tick was given and gave back."""
     station, planners = demo
     made: list[Runner] = []
-    ticks: list[Tick] = []
+    ticks: list[TickRecord] = []
 
     class Recording(Runner):
         def __init__(self, *args: Any, **kwargs: Any) -> None:
             super().__init__(*args, **kwargs)
             made.append(self)
 
-        def tick(
-            self, state: RunnerState, inputs: Inputs, now: float
-        ) -> tuple[RunnerState, dict[str, Any], list[Event]]:
-            after, commands, events = super().tick(state, inputs, now)
-            ticks.append(Tick(inputs, now, commands, events))
-            return after, commands, events
+        def tick(self, state: RunnerState, inputs: Inputs, now: float) -> TickResult:
+            result = super().tick(state, inputs, now)
+            ticks.append(TickRecord(inputs, now, dict(result.commands), list(result.events)))
+            return result
 
     out = {}
     with pytest.MonkeyPatch.context() as patch:
@@ -97,24 +102,24 @@ def sampled(states: list[RunnerState]) -> list[RunnerState]:
     return [
         s
         for k, s in enumerate(states)
-        if k % 10 == 0 or s.recovery or s.maintenance or s.resets or s.timed_out or s.unavailable
+        if k % 10 == 0 or s.recovery or s.maintenance or s.resetting or s.timed_out or s.unavailable
     ]
 
 
 def assert_round_trip(runner: Runner, state: RunnerState) -> None:
-    now = state.next_recheck
+    now = state.next_background_check
     back = restored(runner, state, now)
-    assert (back.watched, back.settled, back.consistent) == (None, None, None)
-    assert back.heard == dict.fromkeys(state.heard, now)
-    assert back.effect_since == dict.fromkeys(state.effect_since, now)
-    assert back.next_recheck == now
-    rest = replace(back, heard=state.heard, effect_since=state.effect_since)
-    assert (
-        replace(rest, watched=state.watched, settled=state.settled, consistent=state.consistent)
-        == state
+    assert [getattr(back, cache) for cache in sorted(CACHES)] == [None] * len(CACHES)
+    assert back.last_heard == dict.fromkeys(state.last_heard, now)
+    assert back.effect_enabled_since == dict.fromkeys(state.effect_enabled_since, now)
+    assert back.next_background_check == now
+    rest = replace(
+        back, last_heard=state.last_heard, effect_enabled_since=state.effect_enabled_since
     )
+    caches = {cache: getattr(state, cache) for cache in CACHES}
+    assert replace(rest, **caches) == state
     # where the runner iterates in order, the order survives too
-    for name in ("values", "intentions", "operations", "goals"):
+    for name in ("values", "intentions", "operations", "operation_goals"):
         assert list(getattr(back, name)) == list(getattr(state, name)), name
 
 
@@ -129,7 +134,8 @@ def test_the_scenarios_exercise_every_stored_field(runs: dict[str, Run]) -> None
     """The round trips above are only as good as what the states held."""
     names = {f.name for f in fields(RunnerState)} - CACHES
     used = {n for run in runs.values() for s in sampled(run.states) for n in names if getattr(s, n)}
-    assert names - used == {"rejected", "halted"}  # no scenario rejects a step or cycles
+    # no scenario rejects a step or cycles
+    assert names - used == {"rejected", "halted"}
 
 
 def test_rejected_steps_and_a_halt_round_trip(runs: dict[str, Run]) -> None:
@@ -144,7 +150,8 @@ def test_every_field_is_stored_or_declared_a_cache(runs: dict[str, Run]) -> None
     """Fails when a field is added to the runner's state (or its plans) and not to snapshots."""
     state = next(s for s in runs[E6].states if s.operation_plan is not None and s.transition_plan)
     saved = dump(state)
-    assert set(saved) - {"format"} == {f.name for f in fields(RunnerState)} - CACHES
+    stored = {STORED_AS.get(f.name, f.name) for f in fields(RunnerState)} - CACHES
+    assert set(saved) - {"format"} == stored
     assert set(saved["transition_plan"]) == {f.name for f in fields(TransitionPlan)}
     assert set(saved["transition_plan"]["blocks"][0]) == {f.name for f in fields(Block)}
     assert set(saved["operation_plan"]) == {f.name for f in fields(OperationPlan)}
@@ -169,18 +176,19 @@ def test_a_restored_runner_carries_on_exactly_like_the_original(
     saved = run.states[k]
     assert any(e.kind == "instruction" for t in run.ticks[: k + 1] for e in t.events)
     fresh = Runner(station, planners.transition, planners.operation, run.scenario.config)
-    state = restored(fresh, saved, saved.next_recheck)
+    state = restored(fresh, saved, saved.next_background_check)
     later = run.ticks[k + 1 :]
     assert len(later) >= 200
     for tick in later:
-        state, commands, events = fresh.tick(state, tick.inputs, tick.now)
-        assert [(e.kind, e.subject, e.detail) for e in events] == [
+        result = fresh.tick(state, tick.inputs, tick.now)
+        state = result.state
+        assert [(e.kind, e.subject, e.detail) for e in result.events] == [
             (e.kind, e.subject, e.detail) for e in tick.events
         ], tick.now
-        assert commands == tick.commands
+        assert result.commands == tick.commands
     final, original = dump(state), dump(run.states[-1])
     # the one difference: r2 never answered again, so its heartbeat stayed rebased
-    assert final.pop("heard") == original.pop("heard") | {"r2": saved.next_recheck}
+    assert final.pop("heard") == original.pop("heard") | {"r2": saved.next_background_check}
     assert final == original
 
 
@@ -239,7 +247,40 @@ def test_an_older_or_newer_model_loads_what_it_knows_unless_strict(runs: dict[st
         load(run.runner, data, 5.0)
     back = load(run.runner, data, 5.0, strict=False)
     assert "r9.pos" not in back.values
-    assert "build_car" not in back.intentions and "build_car" not in back.armed
+    assert "build_car" not in back.intentions and "build_car" not in back.auto_start
     assert back.values["r1.pos"] == run.runner.model.variable("r1.pos").initial
     assert back.intentions["tighten_bolts"] == "i"
     assert back.operations == state.operations
+
+
+def test_a_snapshot_saved_before_causes_and_held_steps_were_kept_loads(
+    runs: dict[str, Run],
+) -> None:
+    """Snapshots written before the runner kept the first causes of errors, the restart
+    reason and held steps lack those keys; they load with none of them."""
+    run = runs[E6]
+    state = next(s for s in run.states if s.operation_causes and s.transition_plan is not None)
+    data = json.loads(json.dumps(dump(state)))
+    for key in ("restart_reason", "restart_user", "intention_causes", "operation_causes"):
+        del data[key]
+    del data["transition_plan"]["held"]
+    back = load(run.runner, data, state.next_background_check)
+    assert back.operation_causes == {} and back.intention_causes == {}
+    assert back.transition_plan is not None and back.transition_plan.held == {}
+    assert back.values == state.values and back.operations == state.operations
+
+
+def test_restart_reason_and_first_causes_round_trip(runs: dict[str, Run]) -> None:
+    run = runs[E6]
+    state = next(s for s in run.states if s.operation_causes)
+    changed = replace(
+        state,
+        restart_mode=True,
+        restart_reason="r2 pushed aside by hand",
+        restart_user="eve",
+        intention_causes={"tighten_bolts": "no plan of operations"},
+    )
+    back = restored(run.runner, changed, changed.next_background_check)
+    assert (back.restart_reason, back.restart_user) == ("r2 pushed aside by hand", "eve")
+    assert back.intention_causes == {"tighten_bolts": "no plan of operations"}
+    assert back.operation_causes == state.operation_causes

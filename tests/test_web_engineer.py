@@ -82,7 +82,7 @@ def test_station_page_shows_the_station_and_only_engineers_reach_it(station: Run
     assert forged.status_code == 403
     assert "expired" in forged.text
     assert station.live.view.state.intentions["tighten_bolts"] == "i"
-    assert "tighten_bolts" not in station.live.view.state.armed
+    assert "tighten_bolts" not in station.live.view.state.auto_start
 
 
 def test_controls_act_through_the_runner_and_are_audited(station: RunningStation):
@@ -119,13 +119,13 @@ def test_controls_act_through_the_runner_and_are_audited(station: RunningStation
     assert not_timed_out.status_code == 409
     assert post(client, token, "/station/restart/enter", reason="").status_code == 422
     assert post(client, token, "/station/intentions/start").status_code == 422  # no name
-    assert not live.view.state.restart
+    assert not live.view.state.restart_mode
 
     entered = post(client, token, "/station/restart/enter", reason="frame put on by hand")
     assert entered.status_code == 200
     assert 'data-testid="restart-mode"' in entered.text
     assert "frame put on by hand" in entered.text
-    assert live.view.state.restart
+    assert live.view.state.restart_mode
     done = set_variable("on_engine", "frame put on by hand")
     assert done.status_code == 200
     assert live.view.state.values["frame.state"] == "on_engine"
@@ -135,7 +135,7 @@ def test_controls_act_through_the_runner_and_are_audited(station: RunningStation
     assert resetting.status_code == 200
     # a plain form (no htmx) gets a redirect back
     assert post(client, token, "/station/restart/leave", htmx=False).status_code == 303
-    assert not live.view.state.restart
+    assert not live.view.state.restart_mode
 
     started = post(client, token, "/station/intentions/start", name="tighten_bolts")
     assert started.status_code == 200

@@ -51,7 +51,7 @@ class StationRecord(Base):
 
     name: Mapped[str] = mapped_column(String(64), primary_key=True)
     active_version_id: Mapped[int | None] = mapped_column(ForeignKey("model_versions.id"))
-    snapshot: Mapped[str] = mapped_column(Text, default="")  # runner_snapshot.dump as JSON
+    snapshot: Mapped[str] = mapped_column(Text, default="")  # planner.runner.snapshot.dump as JSON
     world: Mapped[str] = mapped_column(Text, default="")  # the simulated devices' state, if any
     updated_at: Mapped[float] = mapped_column(Float)
 

@@ -16,7 +16,7 @@ from fastapi import HTTPException
 from app.live_station import LiveStation, StationError
 from planner.loading import closest
 from planner.model import TransitionKind, VariableKind
-from planner.runner_io import Action, Event
+from planner.runner import Action, Event
 
 T = TypeVar("T")
 ANSWER_SECONDS = 30.0
@@ -30,21 +30,13 @@ async def answer(future: Future[T]) -> T:
         raise HTTPException(503, "the station did not answer in time; try again") from None
 
 
-def refused(events: list[Event]) -> str:
-    """The runner's reason, if it refused the action ("" if it took it)."""
-    for event in events:
-        if event.kind == "refused":
-            return f"{event.subject}: {event.detail.get('why', 'refused')}"
-    return ""
-
-
 async def perform(live: LiveStation, action: Action) -> list[Event]:
-    """Hand `action` to the runner; its events, or StationError (409) with the reason."""
-    events = await answer(live.act(action))
-    why = refused(events)
-    if why:
-        raise StationError(why)
-    return events
+    """Hand `action` to the runner; the events of its round, or StationError (409) with the
+    runner's reason for refusing it."""
+    acted = await answer(live.act(action))
+    if not acted.reply.accepted:
+        raise StationError(str(acted.reply))
+    return list(acted.events)
 
 
 def known(name: str, names: list[str], what: str) -> str:
@@ -65,7 +57,7 @@ def operation_name(live: LiveStation, name: str) -> str:
 
 
 def effect_name(live: LiveStation, name: str) -> str:
-    names = [e.name for e in live.runner.effects]
+    names = [e.name for e in live.runner.index.effects]
     return known(name, names, "effect transition")
 
 
@@ -86,12 +78,12 @@ def estimated_value(live: LiveStation, variable: str, text: str) -> tuple[str, b
 def maintenance_step(live: LiveStation, transition: str) -> str:
     """A maintenance transition a task card asks for now: 404 for no such maintenance
     transition, 409 for one nobody asked for."""
-    from app.views import task_cards
+    from app.views import CardKind, task_cards
 
     model = live.model.station.model
     names = [t.name for t in model.transitions if t.kind is TransitionKind.MAINTENANCE]
     known(transition, names, "maintenance transition")
-    asked = {c.transition for c in task_cards(live.view) if c.kind == "instruction"}
+    asked = {c.transition for c in task_cards(live.view) if c.kind is CardKind.INSTRUCTION}
     if transition not in asked:
         raise StationError(f"{transition}: not a maintenance step asked for now")
     return transition

@@ -57,11 +57,12 @@ from app.web.schemas import (
 )
 from app.web.server import Server
 from planner.loading import closest
-from planner.runner_io import (
+from planner.runner import (
     Approve,
     CancelIntention,
     EnterRestart,
     Event,
+    EventKind,
     LeaveRestart,
     MaintenanceDone,
     ReenableEffect,
@@ -146,7 +147,8 @@ async def card_done(
     done = await answer(live.confirm_card(caller.name, card))
     if not done:
         raise StationError(f"card '{card}' cannot be confirmed now; the station is not ready")
-    recorded = Event(live.view.now, "operator", "card done", {"user": caller.name, "card": card})
+    detail = {"user": caller.name, "card": card}
+    recorded = Event(live.view.now, EventKind.OPERATOR, "card done", detail)
     return CardDoneOut(card=card, events=events_out([recorded]))
 
 

@@ -15,7 +15,7 @@ from typing import Any
 from fastapi import HTTPException, Request
 
 from app.auth import allowed, new_csrf_token, same_token
-from app.live_station import StationView
+from app.station_view import StationView
 from app.store.tables import User
 from app.web.server import Server
 

@@ -18,8 +18,8 @@ from fastapi.responses import HTMLResponse, RedirectResponse, Response
 
 from app import plan_view
 from app.auth import allowed
-from app.live_station import StationView
-from app.scenario import ScheduledFault
+from app.station_cycle import ScheduledFault
+from app.station_view import StationView
 from app.store import versions
 from app.views import task_cards
 from app.web import model_editing
@@ -34,11 +34,14 @@ from app.web.actions import (
 )
 from app.web.deps import Caller, page_context, require, server
 from planner.expressions import format_expr, format_value
-from planner.runner_io import (
+from planner.runner import (
     Action,
     CancelIntention,
     EnterRestart,
+    EventKind,
+    IntentionState,
     LeaveRestart,
+    OperationState,
     ReenableEffect,
     ResetOperation,
     SetEstimated,
@@ -120,24 +123,21 @@ def required(text: str, what: str) -> str:
 def status_context(view: StationView) -> dict[str, Any]:
     """Restart mode, resources, intentions, operations, timed-out effects."""
     s, station = view.state, view.model.station
-    restart = plan_view.last_event(view.events, "restart", "entered") if s.restart else None
     return {
-        "restart": s.restart,
-        "restart_reason": restart.detail.get("reason", "") if restart else "",
-        "restart_user": restart.detail.get("user", "") if restart else "",
+        "restart": s.restart_mode,
+        "restart_reason": s.restart_reason if s.restart_mode else "",
+        "restart_user": s.restart_user if s.restart_mode else "",
         "resources": [
             {
                 "name": r.name,
                 "description": r.description,
                 "unavailable": r.name in s.unavailable,
-                "silent": int(view.now - s.heard.get(r.name, view.now)),
+                "silent": int(view.now - s.last_heard.get(r.name, view.now)),
             }
             for r in station.resources
         ],
-        "intentions": plan_view.intention_rows(station, s.intentions, s.armed, view.events),
-        "operations": plan_view.operation_rows(
-            station, s.operations, s.failures, s.resets, view.events
-        ),
+        "intentions": plan_view.intention_rows(station, s),
+        "operations": plan_view.operation_rows(station, s),
         "timed_out": sorted(s.timed_out),
         "forbidden": sorted(s.relaxed) if s.recovery is not None else [],
         "halted": s.halted,
@@ -160,7 +160,7 @@ def plans_context(view: StationView) -> dict[str, Any]:
     if s.maintenance is not None:
         plans.append(
             (
-                "Maintenance plan" + (f" for {s.maintained}" if s.maintained else ""),
+                "Maintenance plan" + (f" for {s.maintenance_for}" if s.maintenance_for else ""),
                 "The operator's steps appear as instruction cards on the tasks page.",
                 plan_view.transition_plan("maintenance", s.maintenance, model),
             )
@@ -179,12 +179,12 @@ def plans_context(view: StationView) -> dict[str, Any]:
     if s.transition_plan is not None:
         plans.append(
             (
-                "Transition plan" + (" (restart mode: resets)" if s.restart else ""),
+                "Transition plan" + (" (restart mode: resets)" if s.restart_mode else ""),
                 "Steps side by side touch no common variable: they may run in parallel.",
                 plan_view.transition_plan("transitions", s.transition_plan, model),
             )
         )
-    planning = [e for e in view.events if e.kind == "plan"][-RECENT_PLANS:]
+    planning = [e for e in view.events if e.kind is EventKind.PLAN][-RECENT_PLANS:]
     return {"plans": plans, "planning": list(reversed(planning))}
 
 
@@ -504,8 +504,7 @@ def simulated(request: Request) -> StationView:
 
 
 def fault_text(fault: ScheduledFault) -> str:
-    f = fault.fault
-    text = plan_view.fault_words(f.kind, f.resource, f.effect, f.instead, f.count, f.values)
+    text = plan_view.fault_words(fault.fault)
     if fault.when is not None:
         return f"{text}, when {format_expr(fault.when)}"
     if fault.at is not None:
@@ -537,10 +536,9 @@ def simulation_status(request: Request, view: StationView) -> dict[str, Any]:
     words = {f.text: fault_text(f) for f in (playing[0].faults if playing else ())}
     return {
         "armed": [words.get(text, text) for text in view.armed_faults],
-        "executing": [n for n, st in s.intentions.items() if st == "e"]
-        + [n for n, st in s.operations.items() if st == "e"],
-        "errors": [n for n, st in s.intentions.items() if st == "error"]
-        + [n for n, st in s.operations.items() if st == "error"],
+        "executing": s.intentions_in(IntentionState.EXECUTING)
+        + s.operations_in(OperationState.EXECUTING),
+        "errors": s.intentions_in(IntentionState.ERROR) + s.operations_in(OperationState.ERROR),
         "tasks": len(task_cards(view)),
     }
 

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from fastapi import HTTPException
 from starlette.concurrency import run_in_threadpool
 
-from app.live_station import build_model
+from app.station_view import build_model
 from app.store import audit, versions
 from app.store.audit import AuditEntry
 from app.store.tables import ModelVersion

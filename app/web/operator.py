@@ -10,7 +10,7 @@ from fastapi.responses import RedirectResponse, Response
 from app.views import task_cards
 from app.web.actions import answer, maintenance_step, perform
 from app.web.deps import Caller, current_caller, page_context, require, server
-from planner.runner_io import Approve, MaintenanceDone, Reject
+from planner.runner import Approve, MaintenanceDone, Reject
 
 router = APIRouter(include_in_schema=False)
 

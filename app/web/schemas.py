@@ -18,14 +18,15 @@ from pydantic import BaseModel, ConfigDict, Field, StringConstraints, model_vali
 from pydantic_core import PydanticCustomError
 
 from app.alarms import SHELVE_LIMIT, Alarm, AlarmChange
-from app.live_station import StationView
+from app.station_view import StationView
 from app.store.tables import AuditRecord, ModelVersion
-from app.views import TaskCard
+from app.views import CardKind, TaskCard
 from app.web.audit import detail_of
 from app.web.model_editing import MAX_MODEL_CHARS
 from planner.expressions import format_expr
-from planner.runner import TransitionPlan
-from planner.runner_io import Event
+from planner.runner import Event, IntentionState, TransitionPlan
+
+INITIAL = IntentionState.INITIAL.value  # the same letter for operations
 
 Name = Annotated[str, StringConstraints(min_length=1, max_length=200)]
 Note = Annotated[str, StringConstraints(max_length=500)]
@@ -74,7 +75,7 @@ class Invalid(BaseModel):
 
 
 class EventOut(BaseModel):
-    """One thing the runner did (see planner.runner_io.KINDS for the kinds)."""
+    """One thing the runner did (its kind is one of planner.runner.EventKind)."""
 
     time: float = Field(description="the runner's clock: seconds since the station started")
     kind: str
@@ -193,7 +194,7 @@ class TaskCardOut(BaseModel):
     maintenance instruction (POST /api/maintenance/{transition}/done) or a recovery step to
     approve (POST /api/approvals/{step})."""
 
-    kind: Literal["command", "instruction", "approval"]
+    kind: CardKind
     key: str
     title: str
     why: str
@@ -387,7 +388,7 @@ def change_out(change: AlarmChange) -> AlarmChangeOut:
 
 def card_out(card: TaskCard) -> TaskCardOut:
     return TaskCardOut(
-        kind=card.kind,  # type: ignore[arg-type]  # one of the three, see app.views.TaskCard
+        kind=card.kind,
         key=card.key,
         title=card.title,
         why=card.why,
@@ -441,8 +442,8 @@ def station_out(view: StationView, name: str) -> StationOut:
         name=name,
         model=ModelRef(number=view.model.number, name=station.name),
         simulated=view.simulated,
-        restart=state.restart,
-        resets=sorted(state.resets),
+        restart=state.restart_mode,
+        resets=sorted(state.resetting),
         halted=state.halted,
         resources=[
             ResourceOut(
@@ -453,16 +454,16 @@ def station_out(view: StationView, name: str) -> StationOut:
             )
             for r in station.resources
         ],
-        intentions={i.name: state.intentions.get(i.name, "i") for i in station.intentions},
-        operations={o.name: state.operations.get(o.name, "i") for o in station.operations},
-        goals={name: format_expr(goal) for name, goal in sorted(state.goals.items())},
+        intentions={i.name: state.intentions.get(i.name, INITIAL) for i in station.intentions},
+        operations={o.name: state.operations.get(o.name, INITIAL) for o in station.operations},
+        goals={name: format_expr(goal) for name, goal in sorted(state.operation_goals.items())},
         failures={name: n for name, n in sorted(state.failures.items()) if n},
         plans=PlansOut(
             operations=steps,
             transitions=_plan_out(state.transition_plan),
             recovery=_plan_out(state.recovery),
             maintenance=_plan_out(state.maintenance),
-            maintained=state.maintained,
+            maintained=state.maintenance_for,
         ),
         timed_out=sorted(state.timed_out),
         variables=dict(state.values),

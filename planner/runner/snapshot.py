@@ -5,11 +5,15 @@ from `load(runner, saved, now)`.  Expressions are stored as text and parsed agai
 runner's model, so a snapshot is checked against the model it is restored into: a name or a
 value the model does not know raises `SnapshotError` saying which.
 
-Not stored: `watched`, `settled` and `consistent`, caches of what the incremental checks last
-looked at; `None` makes the first tick after a restart look at everything.  Rebased: times of
-the old process's clock mean nothing to the new one, so heartbeat windows, effect time-out
-windows and the background check start again at `now` (a device that was unavailable stays
-so until it answers; a timed-out effect stays timed out).
+Not stored: `effects_watched_at`, `automatics_settled_at` and `invariants_held_at`, caches of
+what the incremental checks last looked at; `None` makes the first tick after a restart look at
+everything.  Rebased: times of the old process's clock mean nothing to the new one, so
+heartbeat windows, effect time-out windows and the background check start again at `now` (a
+device that was unavailable stays so until it answers; a timed-out effect stays timed out).
+
+The stored keys are those of format 1, which outside tools may read: where a field of
+`RunnerState` was renamed since, `STORED_AS` gives its key.  Keys added since format 1 began
+(`_ADDED`, and a plan's `held`) are optional, so that older snapshots still load.
 """
 
 from __future__ import annotations
@@ -21,11 +25,32 @@ from typing import Any, TypeVar
 from planner.expressions import Expr, ExpressionError, format_expr, parse_expr
 from planner.loading import scope_for
 from planner.partial_order import Block
-from planner.runner import OperationPlan, Runner, RunnerState, TransitionPlan
+from planner.runner.runner import Runner
+from planner.runner.state import OperationPlan, RunnerState, TransitionPlan
+from planner.runner.vocabulary import IntentionState, OperationState, ReplanReason
 
 FORMAT = 1
+# fields of RunnerState stored under their format-1 names
+STORED_AS = {
+    "operation_goals": "goals",
+    "maintenance_for": "maintained",
+    "last_heard": "heard",
+    "effect_enabled_since": "effect_since",
+    "restart_mode": "restart",
+    "resetting": "resets",
+    "auto_start": "armed",
+    "next_background_check": "next_recheck",
+}
+# keys added to format 1 later, with the value an older snapshot means by leaving them out
+_ADDED = {
+    "restart_reason": "",
+    "restart_user": "",
+    "intention_causes": {},
+    "operation_causes": {},
+}
 
 T = TypeVar("T")
+_State = TypeVar("_State", IntentionState, OperationState)
 
 
 class SnapshotError(Exception):
@@ -34,14 +59,20 @@ class SnapshotError(Exception):
 
 def dump(state: RunnerState) -> dict[str, Any]:
     """The state as plain JSON values: sets as sorted lists, expressions as text."""
+    return {STORED_AS.get(key, key): value for key, value in _fields(state).items()}
+
+
+def _fields(state: RunnerState) -> dict[str, Any]:
     return {
         "format": FORMAT,
         "values": dict(state.values),
-        "intentions": dict(state.intentions),
-        "operations": dict(state.operations),
+        "intentions": {name: str(value) for name, value in state.intentions.items()},
+        "operations": {name: str(value) for name, value in state.operations.items()},
         # pairs, not a mapping (a database may reorder a JSON object's keys): the transition
         # planner's goal conjoins the executing operations' goals in the order they started
-        "goals": [[name, format_expr(goal)] for name, goal in state.goals.items()],
+        "operation_goals": [
+            [name, format_expr(goal)] for name, goal in state.operation_goals.items()
+        ],
         "failures": dict(state.failures),
         "operation_plan": _dump_operations(state.operation_plan),
         "transition_plan": _dump_plan(state.transition_plan),
@@ -49,19 +80,27 @@ def dump(state: RunnerState) -> dict[str, Any]:
         "relaxed": sorted(state.relaxed),
         "rejected": sorted(state.rejected),
         "maintenance": _dump_plan(state.maintenance),
-        "maintained": state.maintained,
-        "heard": dict(state.heard),
+        "maintenance_for": state.maintenance_for,
+        "last_heard": dict(state.last_heard),
         "unavailable": sorted(state.unavailable),
-        "effect_since": dict(state.effect_since),
+        "effect_enabled_since": dict(state.effect_enabled_since),
         "timed_out": sorted(state.timed_out),
-        "restart": state.restart,
-        "resets": sorted(state.resets),
-        "armed": sorted(state.armed),
-        "next_recheck": state.next_recheck,
-        "replan_operations": state.replan_operations,
-        "replan_transitions": state.replan_transitions,
+        "restart_mode": state.restart_mode,
+        "restart_reason": state.restart_reason,
+        "restart_user": state.restart_user,
+        "resetting": sorted(state.resetting),
+        "auto_start": sorted(state.auto_start),
+        "next_background_check": state.next_background_check,
+        "replan_operations": _reason(state.replan_operations),
+        "replan_transitions": _reason(state.replan_transitions),
         "halted": state.halted,
+        "intention_causes": dict(state.intention_causes),
+        "operation_causes": dict(state.operation_causes),
     }
+
+
+def _reason(reason: ReplanReason | None) -> str:
+    return "" if reason is None else reason.value
 
 
 def _dump_plan(plan: TransitionPlan | None) -> dict[str, Any] | None:
@@ -79,6 +118,7 @@ def _dump_plan(plan: TransitionPlan | None) -> dict[str, Any] | None:
         "remaining": {str(k): list(v) for k, v in sorted(plan.remaining.items())},
         "approved": sorted(plan.approved),
         "asked": sorted(plan.asked),
+        "held": {str(k): why for k, why in sorted(plan.held.items())},
     }
 
 
@@ -106,10 +146,15 @@ def load(
     if not isinstance(data, Mapping):
         raise SnapshotError(f"a snapshot is a mapping, not {type(data).__name__}")
     if data.get("format") != FORMAT:
-        raise SnapshotError(f"snapshot format {data.get('format')!r}; this version reads {FORMAT}")
+        shown = data.get("format")
+        raise SnapshotError(f"snapshot format {shown!r}; this version reads format {FORMAT}")
+    data = {**_ADDED, **data}
+    for key in ("transition_plan", "recovery", "maintenance"):
+        if isinstance(data.get(key), dict):
+            data[key] = {"held": {}, **data[key]}
     loader = _Loader(runner, strict)
     keys = dump(runner.initial())  # every key dump writes
-    return loader.state(loader.record(dict(data), keys, "the snapshot"), now)
+    return loader.state(loader.record(data, keys, "the snapshot"), now)
 
 
 class _Loader:
@@ -122,8 +167,8 @@ class _Loader:
             "transition": self.model.transition_index,
             "specification": {s.name for s in self.model.specifications},
             "resource": self.resources,
-            "operation": runner.operations,
-            "intention": runner.intentions,
+            "operation": runner.index.operations,
+            "intention": runner.index.intentions,
         }
 
     def state(self, data: Mapping[str, Any], now: float) -> RunnerState:
@@ -141,18 +186,26 @@ class _Loader:
         failures = self.mapping(data["failures"], "operation", "failures")
         for name, count in failures.items():
             self.check(count, int, f"failures['{name}']")
-        strings = {
-            key: self.check(data[key], str, key)
-            for key in ("maintained", "replan_operations", "replan_transitions", "halted")
-        }
+        texts = (
+            "maintained",
+            "restart_reason",
+            "restart_user",
+            "replan_operations",
+            "replan_transitions",
+            "halted",
+        )
+        strings = {key: self.check(data[key], str, key) for key in texts}
         if strings["maintained"]:
             self.keep(strings["maintained"], "operation", "maintained", droppable=False)
-        self.mapping(data["heard"], "resource", "heard")  # its times are the old clock's
+        self.mapping(data["heard"], "resource", "heard")  # the old clock's times
+        since = self.mapping(data["effect_since"], "transition", "effect_since")
         return RunnerState(
             values={v.name: values.get(v.name, v.initial) for v in model.variables},
-            intentions=self.states(data["intentions"], "intention", ("i", "e", "f", "error")),
-            operations=self.states(data["operations"], "operation", ("i", "e", "error")),
-            goals={name: self.expr(text, f"goals['{name}']") for name, text in goals.items()},
+            intentions=self.states(data["intentions"], "intention", IntentionState),
+            operations=self.states(data["operations"], "operation", OperationState),
+            operation_goals={
+                name: self.expr(text, f"goals['{name}']") for name, text in goals.items()
+            },
             failures=failures,
             operation_plan=self.operation_plan(data["operation_plan"]),
             transition_plan=self.plan(data["transition_plan"], "transition_plan"),
@@ -160,22 +213,40 @@ class _Loader:
             relaxed=frozenset(self.names(data["relaxed"], "specification", "relaxed")),
             rejected=self.names(data["rejected"], "transition", "rejected"),
             maintenance=self.plan(data["maintenance"], "maintenance"),
-            maintained=strings["maintained"],
+            maintenance_for=strings["maintained"],
             # fresh heartbeat and effect time-out windows on the new clock
-            heard=dict.fromkeys(self.resources, now),
+            last_heard=dict.fromkeys(self.resources, now),
             unavailable=self.names(data["unavailable"], "resource", "unavailable"),
-            effect_since=dict.fromkeys(
-                self.mapping(data["effect_since"], "transition", "effect_since"), now
-            ),
+            effect_enabled_since=dict.fromkeys(since, now),
             timed_out=self.names(data["timed_out"], "transition", "timed_out"),
-            restart=self.check(data["restart"], bool, "restart"),
-            resets=self.names(data["resets"], "operation", "resets"),
-            armed=self.names(data["armed"], "intention", "armed"),
-            next_recheck=now,
-            replan_operations=strings["replan_operations"],
-            replan_transitions=strings["replan_transitions"],
+            restart_mode=self.check(data["restart"], bool, "restart"),
+            restart_reason=strings["restart_reason"],
+            restart_user=strings["restart_user"],
+            resetting=self.names(data["resets"], "operation", "resets"),
+            auto_start=self.names(data["armed"], "intention", "armed"),
+            next_background_check=now,
+            replan_operations=self.reason(strings["replan_operations"], "replan_operations"),
+            replan_transitions=self.reason(strings["replan_transitions"], "replan_transitions"),
             halted=strings["halted"],
+            intention_causes=self.causes(data["intention_causes"], "intention"),
+            operation_causes=self.causes(data["operation_causes"], "operation"),
         )
+
+    def causes(self, raw: Any, what: str) -> dict[str, str]:
+        where = f"{what}_causes"
+        causes = self.mapping(raw, what, where)
+        for name, why in causes.items():
+            self.check(why, str, f"{where}['{name}']")
+        return causes
+
+    @staticmethod
+    def reason(text: str, where: str) -> ReplanReason | None:
+        if not text:
+            return None
+        try:
+            return ReplanReason(text)
+        except ValueError:
+            raise SnapshotError(f"{where}: {text!r} is not a reason to plan again") from None
 
     def record(self, raw: Any, keys: Iterable[str], where: str) -> dict[str, Any]:
         """`raw` as a mapping with (at least) these keys."""
@@ -210,14 +281,15 @@ class _Loader:
         steps = self.check(raw, list, where)
         return tuple(n for n in steps if self.keep(n, what, where, droppable=False))
 
-    def states(self, raw: Any, what: str, allowed: tuple[str, ...]) -> dict[str, str]:
+    def states(self, raw: Any, what: str, life_cycle: type[_State]) -> dict[str, _State]:
         where = what + "s"
         states = self.mapping(raw, what, where)
         for name, state in states.items():
-            if state not in allowed:
-                shown = ", ".join(allowed)
+            if state not in {member.value for member in life_cycle}:
+                shown = ", ".join(member.value for member in life_cycle)
                 raise SnapshotError(f"{where}['{name}']: state {state!r} is not one of {shown}")
-        return {name: states.get(name, "i") for name in self.known[what]}  # the model's order
+        initial = life_cycle("i")
+        return {name: life_cycle(states.get(name, initial)) for name in self.known[what]}
 
     def expr(self, text: Any, where: str) -> Expr:
         try:
@@ -256,6 +328,11 @@ class _Loader:
                 raise SnapshotError(f"{where}.remaining: {key!r} is not a block number")
             at = f"{where}.remaining[{key}]"
             remaining[int(key)] = list(self.steps(waiting, "transition", at))
+        held: dict[int, str] = {}
+        for key, why in self.check(raw["held"], dict, f"{where}.held").items():
+            if not str(key).isdigit() or int(key) >= len(blocks):
+                raise SnapshotError(f"{where}.held: {key!r} is not a block number")
+            held[int(key)] = self.check(why, str, f"{where}.held[{key}]")
         return TransitionPlan(
             self.expr(raw["goal"], f"{where}.goal"),
             self.steps(raw["steps"], "transition", f"{where}.steps"),
@@ -264,6 +341,7 @@ class _Loader:
             remaining,
             self.indexes(raw["approved"], len(blocks), f"{where}.approved"),
             self.indexes(raw["asked"], len(blocks), f"{where}.asked"),
+            held,
         )
 
     def operation_plan(self, raw: Any) -> OperationPlan | None:

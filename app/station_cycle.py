@@ -1,0 +1,124 @@
+"""One station cycle: devices, runner, devices again, the same for `sp run` and the web.
+
+Every round of a station, headless (`app.scenario.play`) or live (`app.live_station`), is
+one `StationCycle.step`:
+
+    1. armed faults whose time or condition has come are injected (simulated devices)
+    2. the devices act on the last commands up to now, and report
+    3. the runner ticks on the report and people's actions, in their order
+    4. maintenance steps the runner accepted are done in the world too
+    5. the runner's command values go to the devices
+
+so that what the experiments E1-E9 test is the path the web station runs.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+
+from hw.devices import Devices, ModelSimulation
+from hw.faults import Fault, FaultInjection
+from planner.expressions import Expr, Value
+from planner.model import VariableKind
+from planner.runner import (
+    Action,
+    Event,
+    EventKind,
+    Inputs,
+    MaintenanceDone,
+    Reply,
+    Runner,
+    RunnerState,
+)
+
+
+@dataclass(frozen=True)
+class ScheduledFault:
+    """A fault armed to happen `at` a time or `when` a condition first holds."""
+
+    fault: Fault
+    at: float | None = None
+    when: Expr | None = None
+    text: str = ""
+
+
+@dataclass(frozen=True)
+class ScheduledAction:
+    """A person's action planned `at` a time or `when` a condition first holds."""
+
+    action: Action
+    at: float | None = None
+    when: Expr | None = None
+
+
+def due(
+    scheduled: ScheduledFault | ScheduledAction,
+    now: float,
+    runner: Runner,
+    values: Mapping[str, Value],
+) -> bool:
+    """Its time has come, or its condition holds now."""
+    if scheduled.at is not None and now >= scheduled.at:
+        return True
+    return scheduled.when is not None and runner.holds(scheduled.when, values)
+
+
+@dataclass(frozen=True)
+class CycleResult:
+    """A round's events (faults first, then the tick's) and the replies to its actions."""
+
+    events: tuple[Event, ...]
+    replies: tuple[Reply, ...] = ()
+
+
+@dataclass
+class StationCycle:
+    """A runner, its devices and its state, stepped one round at a time."""
+
+    runner: Runner
+    devices: Devices
+    state: RunnerState
+    faults: list[ScheduledFault] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        self.publish()
+
+    def step(self, now: float, actions: Iterable[Action] = ()) -> CycleResult:
+        events = self.fire_faults(now)
+        self.devices.advance(now)
+        report = self.devices.read()
+        inputs = Inputs(report.measured, report.observed, report.heartbeats, tuple(actions))
+        result = self.runner.tick(self.state, inputs, now)
+        self.state = result.state
+        for reply in result.replies:
+            if reply.accepted and isinstance(reply.action, MaintenanceDone):
+                self.devices.maintenance_done(reply.action.transition)
+        self.publish()
+        return CycleResult((*events, *result.events), result.replies)
+
+    def fire_faults(self, now: float) -> list[Event]:
+        fired = []
+        for scheduled in [f for f in self.faults if due(f, now, self.runner, self.state.values)]:
+            self.faults.remove(scheduled)
+            self.inject(scheduled.fault)
+            detail = {"fault": scheduled.text}
+            fired.append(Event(now, EventKind.FAULT, scheduled.fault.kind.value, detail))
+        return fired
+
+    def inject(self, fault: Fault) -> None:
+        if not isinstance(self.devices, FaultInjection):
+            raise ValueError("these devices cannot be made to fail on demand")
+        self.devices.inject(fault)
+
+    def publish(self) -> None:
+        """The runner's commands to the devices (and its estimates to a simulation)."""
+        self.devices.write(self.runner.commands(self.state))
+        if isinstance(self.devices, ModelSimulation):
+            kinds = self.runner.index.variable_kind
+            estimates = {
+                name: value
+                for name, value in self.state.values.items()
+                if kinds[name] in (VariableKind.ESTIMATED, VariableKind.DECISION)
+            }
+            self.devices.follow_estimates(estimates)

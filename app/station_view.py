@@ -1,0 +1,57 @@
+"""What the station loop shows the pages: the active model version and a view of a round.
+
+`StationView` is replaced as a whole after every round and never changed in place, so a
+page reads one consistent round however long it takes to render.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from app import supervisor_cache
+from app.alarms import Alarm
+from app.store.tables import ModelVersion
+from planner.operation_planner import OperationPlanner
+from planner.runner import Event, Runner, RunnerState
+from planner.station import Station, load_station
+from planner.transition_planner import TransitionPlanner
+
+
+@dataclass(frozen=True)
+class ActiveModel:
+    """A model version made ready to run: parsed, its supervisor synthesised."""
+
+    version_id: int
+    number: int
+    text: str
+    station: Station
+    transition_planner: TransitionPlanner
+    operation_planner: OperationPlanner
+
+
+@dataclass(frozen=True)
+class StationView:
+    """What pages read: replaced as a whole after every round, never changed in place."""
+
+    version: int
+    now: float
+    model: ActiveModel
+    runner: Runner
+    state: RunnerState
+    alarms: tuple[Alarm, ...]
+    events: tuple[Event, ...]  # the most recent, oldest first
+    simulated: bool
+    armed_faults: tuple[str, ...] = ()
+    experiment: str = ""
+
+
+def build_model(version: ModelVersion, cache: Path | None) -> ActiveModel:
+    """Parse a stored version and build its planners (seconds, unless the supervisor is cached)."""
+    station = load_station(version.text, f"model version {version.number}")
+    planner = supervisor_cache.planner(station.model, version.text, "bdd", cache)
+    planner.prepare()  # here, beside the loop, rather than in its first tick's plan
+    supervisor_cache.remember_order(planner, version.text, cache)
+    return ActiveModel(
+        version.id, version.number, version.text, station, planner, OperationPlanner(station)
+    )

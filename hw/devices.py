@@ -1,0 +1,55 @@
+"""The station's devices as the station cycle sees them (STYLE.md: a small interface).
+
+Each round the cycle lets the devices act up to the present (`advance`), reads what they
+report (`read`), hands the report to the runner, and writes the runner's command values
+back (`write`).  A person's maintenance step that the runner accepted is done in the world
+too (`maintenance_done`): simulated devices apply it, real ones will measure it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Protocol, runtime_checkable
+
+from planner.expressions import Value
+
+
+@dataclass(frozen=True)
+class DeviceReport:
+    """What the devices said since the last round.
+
+    `measured`: measured variables as the devices report them; `observed`: decision or
+    estimated variables a pipeline measures directly (a product tracker); `heartbeats`: the
+    resources that answered.
+    """
+
+    measured: Mapping[str, Value] = field(default_factory=dict)
+    observed: Mapping[str, Value] = field(default_factory=dict)
+    heartbeats: frozenset[str] = frozenset()
+
+
+class Devices(Protocol):
+    def advance(self, now: float) -> None:
+        """Let the devices act on the last commands up to time `now`."""
+
+    def read(self) -> DeviceReport:
+        """What the devices report now."""
+
+    def write(self, commands: Mapping[str, Value]) -> None:
+        """The runner's command values, to be carried out."""
+
+    def maintenance_done(self, transition: str) -> None:
+        """A person did maintenance transition `transition` in the world."""
+
+
+@runtime_checkable
+class ModelSimulation(Protocol):
+    """Devices simulated from the station model's own effect transitions.
+
+    The model's effect guards read the controller's estimates too (which tool a robot
+    holds, which bolt pair is placed), so a simulation is also told the runner's estimated
+    and decision values; real devices get only commands.
+    """
+
+    def follow_estimates(self, values: Mapping[str, Value]) -> None: ...

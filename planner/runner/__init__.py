@@ -1,0 +1,83 @@
+"""The runner (DESIGN.md section 4, seed 000 sec. 4): the one place live state changes.
+
+`Runner.tick` runs the phases of a tick in the order `run_tick` gives; each phase is a
+module named after what it does:
+
+    observing      1. what the devices report: availability, effects, unexpected changes
+    people         people's actions (restart mode's in `restart`)
+    automatic      2. automatic transitions to a fixpoint; violated specifications
+    forbidden      3. forbidden-state recovery, each step approved
+    intentions     4. intentions start and finish
+    operations     5. the operation plan: finish, plan (error propagation), start
+    transitions    6. the transition plan for the executing operations
+    following         taking a plan's steps in its start order; checking its rest
+    maintenance       after errors: the operator's maintenance steps
+    effects        7. effect time-outs
+    background        the background check of what is in error
+    queries           planning queries: their labels, the monotonic abstraction, timing
+    restart           restart mode: estimates, resets, restart abilities
+
+`vocabulary` holds the typed words (life cycles, plan labels, reasons, event kinds),
+`state` the live state and its plans, `snapshot` their JSON form, `carry_over` the move to
+a new model version.
+"""
+
+from planner.runner.actions import (
+    Action,
+    Approve,
+    CancelIntention,
+    EnterRestart,
+    LeaveRestart,
+    MaintenanceDone,
+    ReenableEffect,
+    Reject,
+    Reply,
+    ResetOperation,
+    SetEstimated,
+    StartIntention,
+)
+from planner.runner.io import Event, Inputs, RunnerConfig, TickResult
+from planner.runner.queries import QueryObserver
+from planner.runner.runner import Runner, run_tick
+from planner.runner.state import OperationPlan, RunnerState, TransitionPlan
+from planner.runner.vocabulary import (
+    EventKind,
+    IntentionState,
+    OperationState,
+    PlanLevel,
+    RecoveryFlag,
+    ReplanReason,
+    plan_label,
+)
+
+__all__ = [
+    "Action",
+    "Approve",
+    "CancelIntention",
+    "EnterRestart",
+    "Event",
+    "EventKind",
+    "Inputs",
+    "IntentionState",
+    "LeaveRestart",
+    "MaintenanceDone",
+    "OperationPlan",
+    "OperationState",
+    "PlanLevel",
+    "QueryObserver",
+    "RecoveryFlag",
+    "ReenableEffect",
+    "Reject",
+    "ReplanReason",
+    "Reply",
+    "ResetOperation",
+    "Runner",
+    "RunnerConfig",
+    "RunnerState",
+    "SetEstimated",
+    "StartIntention",
+    "TickResult",
+    "TransitionPlan",
+    "plan_label",
+    "run_tick",
+]

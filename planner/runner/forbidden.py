@@ -1,0 +1,85 @@
+"""Phase 3: forbidden-state recovery (DESIGN.md section 4.3, seed 000 sec. 4.4).
+
+When the state violates a specification, production stops: the runner drops the violated
+specifications, plans with maintenance transitions back to a state where every one holds,
+and asks an operator to approve each step before it is taken.  Approved maintenance steps
+are the operator's to do (reported with `MaintenanceDone`); approved controlled steps the
+runner takes.  A rejected step is left out of the next plan.  Recovery ends when every
+specification holds and the state is not bad.
+
+    no recovery --violation--> plan found: steps shown for approval as their turn comes
+    step asked --approve--> approved --taken / done by the operator--> next step
+    step asked --reject--> plan made again without it
+    every specification holds and the state is good --> recovered, production replans
+"""
+
+from __future__ import annotations
+
+from planner.expressions import TRUE
+from planner.model import TransitionKind
+from planner.planning import PlanQuery
+from planner.runner.automatic import violates_specifications
+from planner.runner.following import follow, startable, take
+from planner.runner.queries import announce, ask, disabled
+from planner.runner.tick import Tick
+from planner.runner.vocabulary import EventKind, PlanLevel, RecoveryFlag, ReplanReason
+
+
+def in_forbidden_state(tick: Tick) -> bool:
+    """Is recovery under way, or does the state violate a specification?"""
+    return tick.state.recovery is not None or violates_specifications(tick)
+
+
+def recover(tick: Tick) -> None:
+    state = tick.state
+    violated = tick.index.semantics.violated(tick.current())
+    if state.recovery is None:
+        if not violated:
+            return
+        plan_recovery(tick, violated)
+    plan = state.recovery
+    if plan is None:
+        return
+    if not violated and not tick.runner.is_bad(tick.current()):
+        tick.emit(EventKind.RECOVERED, "all specifications hold", relaxed=sorted(state.relaxed))
+        state.recovery = None
+        state.relaxed = frozenset()
+        state.rejected.clear()
+        tick.replan_operations(ReplanReason.RECOVERED)
+        tick.replan_transitions(ReplanReason.RECOVERED)
+        return
+    for k in startable(tick, plan):
+        name = plan.blocks[k].transition
+        kind = tick.index.kind_of(name)
+        if k not in plan.approved:
+            if k not in plan.asked:
+                plan.asked.add(k)
+                what = tick.index.describe(name)
+                tick.emit(EventKind.APPROVAL, name, step=k, type=kind.value, what=what)
+            continue
+        if kind is TransitionKind.MAINTENANCE:
+            continue  # the operator does it and reports MaintenanceDone
+        take(tick, plan, k, supervised=False)
+
+
+def plan_recovery(tick: Tick, violated: list[str]) -> None:
+    """A plan back to a state where every specification holds, without rejected steps."""
+    state = tick.state
+    state.relaxed = frozenset(violated)
+    tick.emit(EventKind.FORBIDDEN, ", ".join(violated), violated=violated)
+    query = PlanQuery(
+        tick.current(),
+        TRUE,
+        tick.config.max_steps,
+        maintenance=True,
+        disabled=disabled(tick) | state.rejected,
+        relaxed=state.relaxed,
+    )
+    result, millis = ask(tick, PlanLevel.TRANSITIONS, query, "forbidden-state recovery")
+    flags = (RecoveryFlag.MAINTENANCE,)
+    announce(tick, PlanLevel.TRANSITIONS, flags, ReplanReason.FORBIDDEN_STATE, result, millis)
+    if not result.found:
+        return
+    state.recovery = follow(tick, TRUE, result)
+    if not state.recovery.blocks:
+        state.recovery = None

@@ -1,0 +1,116 @@
+"""Error propagation's last step: maintenance for what is in error (seed 000 sec. 4.5).
+
+When intentions are in error, the transition planner is asked, with maintenance transitions
+allowed, for a plan that completes an operation in error.  The plan is followed up to its
+last maintenance step: the runner takes its controlled steps (supervised), and each
+maintenance step becomes an instruction for the operator once the steps before it are done;
+the operator reports it done.  When every step is done, the operation it was made for may
+be tried again, if it has retries left.
+
+    no maintenance --intentions in error, a plan found--> following it
+    its turn comes --> instruction shown --> the operator reports it done --> next step
+    every step done --> the operation goes back to initial (within its retries)
+    no intention in error any more --> the plan is dropped
+"""
+
+from __future__ import annotations
+
+from planner.model import TransitionKind
+from planner.partial_order import blocks
+from planner.runner.following import startable, take
+from planner.runner.queries import announce, ask, recovery_flags, transition_query
+from planner.runner.state import TransitionPlan
+from planner.runner.tick import Tick
+from planner.runner.vocabulary import (
+    EventKind,
+    IntentionState,
+    OperationState,
+    PlanLevel,
+    ReplanReason,
+)
+
+
+def plan_maintenance(tick: Tick) -> None:
+    """With intentions in error: a plan with maintenance transitions for the first operation
+    in error that has one (those that were executing first)."""
+    state = tick.state
+    errors = state.operations_in(OperationState.ERROR)
+    failed = [n for n in errors if n in state.operation_goals]
+    failed += [n for n in errors if n not in state.operation_goals]
+    semantics = tick.index.semantics
+    for name in failed:
+        goal = state.operation_goals.get(name) or tick.index.operations[name].planning_goal(
+            state.values
+        )
+        query = transition_query(tick, goal, [name], maintenance=True)
+        result, millis = ask(tick, PlanLevel.TRANSITIONS, query, "maintenance")
+        flags = recovery_flags(tick, maintenance=True)
+        reason = ReplanReason.MAINTENANCE
+        announce(tick, PlanLevel.TRANSITIONS, flags, reason, result, millis, operation=name)
+        maintenance = tuple(
+            step for step in result.plan if tick.index.kind_of(step) is TransitionKind.MAINTENANCE
+        )
+        if not (result.found and maintenance):
+            continue
+        # followed up to its last maintenance step; the rest is production again
+        last = max(k for k, step in enumerate(result.plan) if step in maintenance)
+        prefix = result.plan[: last + 1]
+        pending = len(result.states) > last + 1 and semantics.automatic_enabled(
+            result.states[last + 1]
+        )
+        order = blocks(tick.index.model, prefix, automatic_at_end=pending)
+        state.maintenance = TransitionPlan(goal, prefix, tuple(order))
+        state.maintenance_for = name
+        return
+
+
+def follow_maintenance_plan(tick: Tick) -> None:
+    state = tick.state
+    plan = state.maintenance
+    if plan is None:
+        return
+    if not state.intentions_in(IntentionState.ERROR):
+        state.maintenance = None
+        return
+    for k in startable(tick, plan):
+        name = plan.blocks[k].transition
+        if tick.index.kind_of(name) is not TransitionKind.MAINTENANCE:
+            take(tick, plan, k, supervised=True)
+        elif k not in plan.asked:
+            plan.asked.add(k)
+            steps = [b.transition for b in plan.blocks]
+            tick.emit(
+                EventKind.INSTRUCTION,
+                name,
+                operation=state.maintenance_for,
+                step=steps.index(name) + 1,
+                of=len(steps),
+                what=tick.index.describe(name),
+            )
+    if len(plan.done) < len(plan.blocks):
+        return
+    name, state.maintenance, state.maintenance_for = state.maintenance_for, None, ""
+    in_error = state.operations[name] == OperationState.ERROR
+    if in_error and state.failures.get(name, 0) < tick.config.retries:
+        state.operation_goals.pop(name, None)
+        tick.set_operation(name, OperationState.INITIAL, "the maintenance it needed is done")
+        tick.replan_operations(ReplanReason.CLEARED)
+
+
+def pending_maintenance(tick: Tick) -> list[str]:
+    """The maintenance steps the operator has been asked to do and may report done now."""
+    recovery, maintenance = tick.state.recovery, tick.state.maintenance
+    if recovery is not None:
+        return [
+            recovery.blocks[k].transition
+            for k in startable(tick, recovery)
+            if k in recovery.approved
+            and tick.index.kind_of(recovery.blocks[k].transition) is TransitionKind.MAINTENANCE
+        ]
+    if maintenance is None:
+        return []
+    return [
+        maintenance.blocks[k].transition
+        for k in startable(tick, maintenance)
+        if k in maintenance.asked
+    ]

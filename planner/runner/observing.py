@@ -1,0 +1,110 @@
+"""Phase 1: what the devices report (DESIGN.md section 4.1).
+
+Heartbeats decide which resources are available: one that has not answered within the
+heartbeat time-out is unavailable and all its transitions are disabled, until it answers
+again.  Measured changes are explained by effect transitions, which advances the plans that
+expect them; a change no enabled effect explains is `unexpected`, and an effect other than
+the one the plans expected is an error event too (section 4.7).  Observed values (a product
+tracker's report of decision variables) are taken as they are.
+"""
+
+from __future__ import annotations
+
+from planner.expressions import Value
+from planner.runner.io import Inputs
+from planner.runner.tick import Tick
+from planner.runner.vocabulary import EventKind, ReplanReason
+
+
+def take_inputs(tick: Tick, inputs: Inputs) -> None:
+    take_heartbeats(tick, inputs.heartbeats)
+    values = tick.state.values
+    changed = {
+        name: value
+        for name, value in sorted(inputs.measured.items())
+        if name in values and values[name] != value
+    }
+    explain(tick, changed)
+    for name, value in sorted(inputs.observed.items()):
+        if name in values and values[name] != value:
+            before = values[name]
+            values[name] = value
+            tick.emit(EventKind.OBSERVED, name, before=before, after=value)
+
+
+def take_heartbeats(tick: Tick, heartbeats: frozenset[str]) -> None:
+    state = tick.state
+    for resource in sorted(heartbeats):
+        state.last_heard[resource] = tick.now
+        if resource in state.unavailable:
+            state.unavailable.discard(resource)
+            tick.availability_changed.add(resource)
+            tick.emit(EventKind.AVAILABLE, resource)
+            tick.replan_transitions(ReplanReason.AVAILABILITY)
+    for resource, heard in sorted(state.last_heard.items()):
+        late = tick.now - heard > tick.config.heartbeat_timeout
+        if late and resource not in state.unavailable:
+            state.unavailable.add(resource)
+            tick.availability_changed.add(resource)
+            tick.emit(EventKind.UNAVAILABLE, resource, silent_for=round(tick.now - heard, 3))
+            tick.replan_transitions(ReplanReason.AVAILABILITY)
+
+
+def explain(tick: Tick, changed: dict[str, Value]) -> None:
+    """Match measured changes to enabled effects; what no effect explains is unexpected."""
+    index = tick.index
+    values = tick.state.values
+    remaining = dict(changed)
+    progress = True
+    while remaining and progress:
+        progress = False
+        state = tick.current()
+        candidates = sorted({k for n in remaining for k in index.effects_writing.get(n, ())})
+        for effect in (index.effects[k] for k in candidates):
+            targets = [a.target for a in effect.transition.actions]
+            if not remaining.keys() & set(targets) or not effect.guard(state):
+                continue
+            after = index.semantics.values(effect.apply(state))
+            if all(remaining.get(t, values[t]) == after[t] for t in targets):
+                for target in targets:
+                    values[target] = after[target]
+                    remaining.pop(target, None)
+                tick.emit(EventKind.EFFECT, effect.name)
+                report_a_different_effect(tick, effect.name)
+                happened(tick, effect.name)
+                progress = True
+                break
+    if remaining:
+        values.update(remaining)
+        tick.emit(
+            EventKind.UNEXPECTED,
+            ", ".join(sorted(remaining)),
+            values=dict(sorted(remaining.items())),
+        )
+
+
+def report_a_different_effect(tick: Tick, name: str) -> None:
+    """An effect of the same ability as one the plans expect, instead of it (E8, E9)."""
+    expected = expected_effects(tick)
+    if name in expected:
+        return
+    instead_of = sorted(tick.index.alternatives.get(name, frozenset()) & expected)
+    if instead_of:
+        tick.emit(EventKind.UNEXPECTED, name, instead_of=instead_of, why="a different effect")
+
+
+def expected_effects(tick: Tick) -> set[str]:
+    state = tick.state
+    expected: set[str] = set()
+    for plan in (state.transition_plan, state.recovery, state.maintenance):
+        if plan is not None:
+            expected |= plan.expected()
+    return expected
+
+
+def happened(tick: Tick, name: str) -> None:
+    """An effect or automatic step happened: the plans waiting for it move on."""
+    state = tick.state
+    for plan in (state.transition_plan, state.recovery, state.maintenance):
+        if plan is not None:
+            plan.happened(name)

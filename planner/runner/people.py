@@ -1,0 +1,126 @@
+"""People's actions: operators, engineers and line systems telling the runner something.
+
+Each action is taken in the tick it arrives in, after the devices' reports, and answered
+with a `Reply`: accepted (and recorded as an `operator` event with the user's name) or
+refused with the reason (a `refused` event).  Restart-mode actions are in
+`planner.runner.restart`.
+"""
+
+from __future__ import annotations
+
+from planner.model import TransitionKind
+from planner.runner import restart
+from planner.runner.actions import (
+    Action,
+    Approve,
+    CancelIntention,
+    EnterRestart,
+    LeaveRestart,
+    MaintenanceDone,
+    ReenableEffect,
+    Reject,
+    Reply,
+    ResetOperation,
+    SetEstimated,
+    StartIntention,
+)
+from planner.runner.maintenance import pending_maintenance
+from planner.runner.tick import Tick
+from planner.runner.vocabulary import EventKind, IntentionState, ReplanReason
+
+
+def act(tick: Tick, action: Action) -> Reply:
+    match action:
+        case StartIntention() | CancelIntention():
+            return start_or_cancel(tick, action)
+        case Approve() | Reject():
+            return approve_or_reject(tick, action)
+        case MaintenanceDone():
+            return maintenance_done(tick, action)
+        case EnterRestart():
+            return restart.enter(tick, action)
+        case LeaveRestart():
+            return restart.leave(tick, action)
+        case SetEstimated():
+            return restart.set_estimated(tick, action)
+        case ResetOperation():
+            return restart.reset_operation(tick, action)
+        case ReenableEffect():
+            return reenable_effect(tick, action)
+    return refuse(tick, action, type(action).__name__, "the runner does not know this action")
+
+
+def refuse(tick: Tick, action: Action, subject: str, why: str) -> Reply:
+    tick.emit(EventKind.REFUSED, subject, user=action.user, why=why)
+    return Reply.refuse(action, subject, why)
+
+
+def start_or_cancel(tick: Tick, action: StartIntention | CancelIntention) -> Reply:
+    state = tick.state
+    name, who = action.name, action.user
+    if name not in state.intentions:
+        return refuse(tick, action, name, "there is no such intention")
+    current = state.intentions[name]
+    if isinstance(action, StartIntention):
+        state.auto_start.add(name)
+        if current in (IntentionState.FINISHED, IntentionState.ERROR):
+            tick.set_intention(name, IntentionState.INITIAL, "started again by " + who)
+        tick.emit(EventKind.OPERATOR, "start intention", user=who, intention=name)
+    else:
+        state.auto_start.discard(name)
+        if current in (IntentionState.EXECUTING, IntentionState.ERROR):
+            tick.set_intention(name, IntentionState.INITIAL, "cancelled")
+        tick.emit(EventKind.OPERATOR, "cancel intention", user=who, intention=name)
+    return Reply.accept(action)
+
+
+def approve_or_reject(tick: Tick, action: Approve | Reject) -> Reply:
+    state = tick.state
+    plan = state.recovery
+    step = action.step
+    if plan is None or not 0 <= step < len(plan.blocks):
+        return refuse(tick, action, f"step {step}", "no such recovery step")
+    transition = plan.blocks[step].transition
+    if isinstance(action, Reject):
+        tick.emit(EventKind.OPERATOR, "reject", user=action.user, step=step, transition=transition)
+        state.recovery = None  # plan again, without the rejected step
+        state.relaxed = frozenset()
+        state.rejected.add(transition)
+        return Reply.accept(action)
+    plan.approved.add(step)
+    tick.emit(EventKind.OPERATOR, "approve", user=action.user, step=step, transition=transition)
+    return Reply.accept(action)
+
+
+def maintenance_done(tick: Tick, action: MaintenanceDone) -> Reply:
+    """The operator did a maintenance step asked for now: the runner applies it, measured
+    values included (the devices will report what the operator did, and a disconnected
+    one cannot), and the plan it belongs to moves on."""
+    state = tick.state
+    name = action.transition
+    if name not in pending_maintenance(tick):
+        return refuse(tick, action, name, "not a maintenance step asked for now")
+    chosen = tick.index.transition(name)
+    assert chosen.kind is TransitionKind.MAINTENANCE
+    current = tick.current()
+    if not chosen.guard(current):
+        return refuse(tick, action, name, "its guard does not hold")
+    tick.set_values(chosen.apply(current))
+    tick.emit(EventKind.OPERATOR, "maintenance done", user=action.user, transition=name)
+    plan = state.recovery if state.recovery is not None else state.maintenance
+    if plan is not None:
+        plan.mark_taken(name)
+    return Reply.accept(action)
+
+
+def reenable_effect(tick: Tick, action: ReenableEffect) -> Reply:
+    state = tick.state
+    name = action.name
+    if name not in state.timed_out:
+        return refuse(tick, action, name, "the effect is not timed out")
+    state.timed_out.discard(name)
+    state.effect_enabled_since.pop(name, None)
+    tick.reenabled_by_people.add(name)
+    tick.emit(EventKind.REENABLED, name, user=action.user)
+    tick.replan_transitions(ReplanReason.REENABLED)
+    return Reply.accept(action)

@@ -1,0 +1,122 @@
+"""The runner: the one place live state changes (DESIGN.md section 4, seed 000 sec. 4).
+
+A deterministic state machine with an injected clock: `tick(state, inputs, now)` returns the
+next state, the command values to publish, the events of the tick and a reply to each
+person's action.  `run_tick` is the order of a tick, written once; each phase is a module
+of this package, named after what it does.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+
+from planner.expressions import Expr, Value
+from planner.model import VariableKind
+from planner.operation_planner import OperationPlanner
+from planner.runner import (
+    automatic,
+    background,
+    effects,
+    forbidden,
+    intentions,
+    maintenance,
+    observing,
+    operations,
+    people,
+    transitions,
+)
+from planner.runner.actions import Reply
+from planner.runner.io import Inputs, RunnerConfig, TickResult
+from planner.runner.queries import QueryObserver
+from planner.runner.state import RunnerState
+from planner.runner.station_index import StationIndex
+from planner.runner.tick import Tick
+from planner.runner.vocabulary import IntentionState, OperationState
+from planner.semantics import Semantics, State
+from planner.station import Station
+from planner.transition_planner import TransitionPlanner
+
+Stopwatch = Callable[[], float]
+
+_BAD_CACHE = 4096  # states whose badness is remembered (plans are checked every tick)
+
+
+def run_tick(tick: Tick, inputs: Inputs) -> list[Reply]:
+    """One tick in the order of DESIGN.md section 4; the replies to people's actions."""
+    observing.take_inputs(tick, inputs)  # 1. measurements, observed products, heartbeats
+    replies = [people.act(tick, action) for action in inputs.actions]
+    automatic.settle(tick)  # 2. automatic transitions to a fixpoint
+    if forbidden.in_forbidden_state(tick):
+        forbidden.recover(tick)  # 3. forbidden-state recovery, nothing else
+    else:
+        intentions.start_and_finish(tick)  # 4.
+        operations.follow_operation_plan(tick)  # 5. the operation planner
+        transitions.follow_transition_plan(tick)  # 6. the transition planner
+        maintenance.follow_maintenance_plan(tick)  # after errors: the operator's steps
+    effects.monitor_effects(tick)  # 7. effect time-outs
+    if background.due(tick):
+        background.background_check(tick)  # errors that can be completed again
+    return replies
+
+
+class Runner:
+    """Runs one station model; built once, ticked forever."""
+
+    def __init__(
+        self,
+        station: Station,
+        transition_planner: TransitionPlanner,
+        operation_planner: OperationPlanner,
+        config: RunnerConfig | None = None,
+        stopwatch: Stopwatch | None = None,
+        observer: QueryObserver | None = None,
+    ) -> None:
+        self.station = station
+        self.model = station.model
+        self.config = config or RunnerConfig()
+        self.transition_planner = transition_planner
+        self.operation_planner = operation_planner
+        self.semantics = Semantics(self.model)
+        self.index = StationIndex(station, self.semantics)
+        self.stopwatch = stopwatch
+        self.observer = observer
+        self._bad: dict[State, bool] = {}
+
+    def initial(self, now: float = 0.0, values: Mapping[str, Value] | None = None) -> RunnerState:
+        start = {v.name: v.initial for v in self.model.variables}
+        start.update(values or {})
+        chosen = self.config.auto_intentions
+        auto_start = set(self.index.intentions) if chosen is None else set(chosen)
+        return RunnerState(
+            values=start,
+            intentions=dict.fromkeys(self.index.intentions, IntentionState.INITIAL),
+            operations=dict.fromkeys(self.index.operations, OperationState.INITIAL),
+            last_heard={r.name: now for r in self.station.resources},
+            auto_start=auto_start,
+            next_background_check=now,
+        )
+
+    def tick(self, state: RunnerState, inputs: Inputs, now: float) -> TickResult:
+        work = Tick(self, state.copy(), now)
+        replies = run_tick(work, inputs)
+        return TickResult(work.state, self.commands(work.state), tuple(work.events), tuple(replies))
+
+    def commands(self, state: RunnerState) -> dict[str, Value]:
+        """The command values of `state`: what the devices are told."""
+        kinds = self.index.variable_kind
+        return {n: v for n, v in state.values.items() if kinds[n] is VariableKind.COMMAND}
+
+    def holds(self, expr: Expr, values: Mapping[str, Value]) -> bool:
+        return self.index.holds(expr, values)
+
+    def is_bad(self, state: State) -> bool:
+        """Is `state` bad (section 8: a specification is violated, or uncontrollable steps
+        alone can lead to a violation)?  Remembered for the states seen lately."""
+        bad = self._bad.get(state)
+        if bad is None:
+            planner = self.transition_planner
+            bad = planner.sym.contains(planner.bad, state)
+            if len(self._bad) >= _BAD_CACHE:
+                self._bad.clear()
+            self._bad[state] = bad
+        return bad

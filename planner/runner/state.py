@@ -1,0 +1,191 @@
+"""The runner's live state: values, intentions and operations, the plans being followed.
+
+`RunnerState` is everything the runner knows between two ticks; a tick works on a copy and
+returns it, and `planner.runner.snapshot` saves it whole.  The plans record how far they
+have been followed, so that a restarted station carries on where it stopped.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import TypeVar
+
+from planner.expressions import Expr, Value
+from planner.partial_order import Block
+from planner.runner.vocabulary import IntentionState, OperationState, ReplanReason
+from planner.semantics import State
+
+
+@dataclass
+class TransitionPlan:
+    """A transition plan being followed: its blocks and which of them have been started.
+
+    A block is a controlled (or maintenance) step with the effects and automatic steps that
+    follow it (`planner.partial_order`); it may start once the blocks it comes `after` are
+    done.  Forbidden-state recovery also records which blocks were shown for approval and
+    which were approved.
+    """
+
+    goal: Expr
+    steps: tuple[str, ...]
+    blocks: tuple[Block, ...]
+    taken: set[int] = field(default_factory=set)
+    # for each taken block, its effects and automatics that have not happened yet
+    remaining: dict[int, list[str]] = field(default_factory=dict)
+    approved: set[int] = field(default_factory=set)  # recovery: blocks an operator approved
+    asked: set[int] = field(default_factory=set)  # recovery, maintenance: blocks shown to people
+    # blocks held back when their turn came, with the reason last reported (reported once)
+    held: dict[int, str] = field(default_factory=dict)
+
+    @property
+    def done(self) -> set[int]:
+        return {k for k in self.taken if not self.remaining.get(k)}
+
+    def start(self, k: int) -> None:
+        self.taken.add(k)
+        self.remaining[k] = list(self.blocks[k].steps[1:])
+        self.held.pop(k, None)
+
+    def copy(self) -> TransitionPlan:
+        return replace(
+            self,
+            taken=set(self.taken),
+            remaining={k: list(v) for k, v in self.remaining.items()},
+            approved=set(self.approved),
+            asked=set(self.asked),
+            held=dict(self.held),
+        )
+
+    def happened(self, name: str) -> None:
+        """An effect or automatic step happened: it completes the earliest block expecting it."""
+        for k in sorted(self.remaining):
+            if name in self.remaining[k]:
+                self.remaining[k].remove(name)
+                return
+
+    def mark_taken(self, name: str) -> None:
+        """Transition `name` was taken outside the runner (a person's maintenance step)."""
+        for k, block in enumerate(self.blocks):
+            if k not in self.taken and block.transition == name:
+                self.start(k)
+                return
+
+    def expected(self) -> set[str]:
+        """The effects and automatic steps the taken blocks still wait for."""
+        return {name for waiting in self.remaining.values() for name in waiting}
+
+
+@dataclass
+class OperationPlan:
+    """An operation plan being followed: operation k may start once those in `after[k]` have
+    finished (the operations' partial order, DESIGN.md section 3.4)."""
+
+    steps: tuple[str, ...]
+    after: tuple[frozenset[int], ...]
+    started: set[int] = field(default_factory=set)
+    finished: set[int] = field(default_factory=set)
+
+    def copy(self) -> OperationPlan:
+        return replace(self, started=set(self.started), finished=set(self.finished))
+
+    def finish(self, name: str) -> None:
+        for k in sorted(self.started - self.finished):
+            if self.steps[k] == name:
+                self.finished.add(k)
+                return
+
+    def unstart(self, name: str) -> None:
+        """The plan may start `name` again."""
+        for k in sorted(self.started - self.finished):
+            if self.steps[k] == name:
+                self.started.discard(k)
+
+
+@dataclass
+class RunnerState:
+    """Everything live; a tick works on a copy and returns it."""
+
+    values: dict[str, Value]
+    intentions: dict[str, IntentionState]
+    operations: dict[str, OperationState]
+    # the executing operations' goals for the transition planner, fixed when each started
+    operation_goals: dict[str, Expr] = field(default_factory=dict)
+    failures: dict[str, int] = field(default_factory=dict)  # per operation, since it last finished
+    operation_plan: OperationPlan | None = None
+    transition_plan: TransitionPlan | None = None
+    recovery: TransitionPlan | None = None  # forbidden-state recovery in progress
+    relaxed: frozenset[str] = frozenset()  # the specifications the recovery plan may violate
+    rejected: set[str] = field(default_factory=set)  # recovery steps an operator rejected
+    # after errors: the plan with maintenance transitions being followed, and the operation
+    # in error it was made for (seed 000 sec. 4.5)
+    maintenance: TransitionPlan | None = None
+    maintenance_for: str = ""
+    last_heard: dict[str, float] = field(default_factory=dict)  # per resource
+    unavailable: set[str] = field(default_factory=set)
+    effect_enabled_since: dict[str, float] = field(default_factory=dict)
+    timed_out: set[str] = field(default_factory=set)
+    restart_mode: bool = False
+    restart_reason: str = ""  # why restart mode was entered, and by whom
+    restart_user: str = ""
+    # restart mode: operations being reset, planned to reach their precondition
+    resetting: set[str] = field(default_factory=set)
+    auto_start: set[str] = field(default_factory=set)  # intentions that start by themselves
+    next_background_check: float = 0.0
+    replan_operations: ReplanReason | None = None  # why the operation plan must be made again
+    replan_transitions: ReplanReason | None = None
+    halted: str = ""  # a model error stopped automatic steps
+    # why each intention and operation in error went there: the first cause, kept until it
+    # leaves the error (later failures of the same error do not overwrite it)
+    intention_causes: dict[str, str] = field(default_factory=dict)
+    operation_causes: dict[str, str] = field(default_factory=dict)
+    # what the incremental checks last looked at (None: look at everything): effects were
+    # watched for time-outs, automatics were at a fixpoint, no invariant was violated
+    effects_watched_at: State | None = None
+    automatics_settled_at: State | None = None
+    invariants_held_at: State | None = None
+
+    def copy(self) -> RunnerState:
+        """A copy a tick may change without touching this one (expressions, tuples and
+        values are immutable and shared; a deepcopy cost more than the rest of a tick)."""
+        return replace(
+            self,
+            values=dict(self.values),
+            intentions=dict(self.intentions),
+            operations=dict(self.operations),
+            operation_goals=dict(self.operation_goals),
+            failures=dict(self.failures),
+            operation_plan=_copied(self.operation_plan),
+            transition_plan=_copied(self.transition_plan),
+            recovery=_copied(self.recovery),
+            rejected=set(self.rejected),
+            maintenance=_copied(self.maintenance),
+            last_heard=dict(self.last_heard),
+            unavailable=set(self.unavailable),
+            effect_enabled_since=dict(self.effect_enabled_since),
+            timed_out=set(self.timed_out),
+            resetting=set(self.resetting),
+            auto_start=set(self.auto_start),
+            intention_causes=dict(self.intention_causes),
+            operation_causes=dict(self.operation_causes),
+        )
+
+    def intentions_in(self, state: IntentionState) -> list[str]:
+        return [name for name, current in self.intentions.items() if current == state]
+
+    def operations_in(self, state: OperationState) -> list[str]:
+        return [name for name, current in self.operations.items() if current == state]
+
+    def executing(self) -> list[str]:
+        """The executing operations with planning goals, in the order they started."""
+        return [
+            name
+            for name in self.operation_goals
+            if self.operations[name] == OperationState.EXECUTING
+        ]
+
+
+_Plan = TypeVar("_Plan", TransitionPlan, OperationPlan)
+
+
+def _copied(plan: _Plan | None) -> _Plan | None:
+    return None if plan is None else plan.copy()

@@ -1,0 +1,97 @@
+"""One tick's work: a private copy of the state, the clock reading and the events so far.
+
+Every phase of the runner (`planner.runner.observing`, `.automatic`, `.forbidden`, ...) is
+a set of functions of a `Tick`.  The tick is also the one place where an intention or an
+operation changes state, so that every change is an event, follows its life cycle
+(`planner.runner.vocabulary`) and keeps the first cause of an error.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from planner.expressions import Value
+from planner.runner.io import Event
+from planner.runner.state import RunnerState
+from planner.runner.vocabulary import (
+    INTENTION_LIFE_CYCLE,
+    OPERATION_LIFE_CYCLE,
+    EventKind,
+    IntentionState,
+    OperationState,
+    ReplanReason,
+)
+from planner.semantics import State
+
+if TYPE_CHECKING:
+    from planner.runner.runner import Runner
+    from planner.runner.station_index import StationIndex
+
+
+class LifeCycleError(AssertionError):
+    """A change of state its life cycle does not allow: a bug in the runner, never input."""
+
+
+class Tick:
+    """One tick's work on a private copy of the state."""
+
+    def __init__(self, runner: Runner, state: RunnerState, now: float) -> None:
+        self.runner = runner
+        self.index: StationIndex = runner.index
+        self.config = runner.config
+        self.state = state
+        self.now = now
+        self.events: list[Event] = []
+        self.availability_changed: set[str] = set()  # resources that came or went
+        self.reenabled_by_people: set[str] = set()  # effects a person re-enabled
+
+    def emit(
+        self, kind: EventKind, subject: str, millis: float | None = None, **detail: object
+    ) -> None:
+        self.events.append(Event(self.now, kind, subject, detail, millis))
+
+    def current(self) -> State:
+        """The live values as a state of the model."""
+        return self.index.as_state(self.state.values)
+
+    def set_values(self, state: State) -> None:
+        self.state.values = self.index.semantics.values(state)
+
+    def replan_operations(self, reason: ReplanReason) -> None:
+        """Make the operation plan again this tick (the first reason given is kept)."""
+        if self.state.replan_operations is None:
+            self.state.replan_operations = reason
+
+    def replan_transitions(self, reason: ReplanReason) -> None:
+        """Make the transition plan again this tick (the first reason given is kept)."""
+        if self.state.replan_transitions is None:
+            self.state.replan_transitions = reason
+
+    def set_intention(self, name: str, new: IntentionState, why: str) -> None:
+        state = self.state
+        before = state.intentions[name]
+        if new not in INTENTION_LIFE_CYCLE[before]:
+            raise LifeCycleError(f"intention {name}: {before.name} may not become {new.name}")
+        state.intentions[name] = new
+        _keep_cause(state.intention_causes, name, new is IntentionState.ERROR, why)
+        self.emit(EventKind.INTENTION, name, before=before, after=new, why=why)
+        self.replan_operations(ReplanReason.INTENTIONS)
+
+    def set_operation(self, name: str, new: OperationState, why: str) -> None:
+        state = self.state
+        before = state.operations[name]
+        if new not in OPERATION_LIFE_CYCLE[before]:
+            raise LifeCycleError(f"operation {name}: {before.name} may not become {new.name}")
+        state.operations[name] = new
+        _keep_cause(state.operation_causes, name, new is OperationState.ERROR, why)
+        self.emit(EventKind.OPERATION, name, before=before, after=new, why=why)
+
+    def value(self, name: str) -> Value:
+        return self.state.values[name]
+
+
+def _keep_cause(causes: dict[str, str], name: str, error: bool, why: str) -> None:
+    if error:
+        causes.setdefault(name, why)
+    else:
+        causes.pop(name, None)
