@@ -63,3 +63,6 @@ def test_alarms_are_acknowledged_with_a_note_shelved_and_unshelved(station: Runn
     by_operator = [(r.subject, r.user, r.detail) for r in rows if r.user == "operator"]
     assert any("r2 taken by the other station" in detail for _, _, detail in by_operator)
     assert len(by_operator) == 3  # acknowledged, shelved, unshelved
+    # the station's own changes are audited too: the alarm was raised when r2 went silent
+    raised = [r for r in rows if r.subject == key and not r.user]
+    assert raised and "condition appeared" in raised[0].detail
