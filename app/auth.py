@@ -8,6 +8,7 @@ import time
 from collections import defaultdict, deque
 from collections.abc import Callable
 from dataclasses import dataclass
+from enum import StrEnum
 
 from argon2 import PasswordHasher
 from argon2.exceptions import InvalidHashError, VerificationError
@@ -17,15 +18,44 @@ from sqlalchemy.orm import Session
 
 from app.store.tables import Setting, User
 
-ROLES = ("operator", "engineer", "auditor", "admin")
-# what each role may do; pages and API routes name the permission they need
-_OPERATOR = frozenset({"tasks", "alarms", "acknowledge"})
-_ENGINEER = _OPERATOR | {"station", "control", "model", "activate", "simulate", "audit"}
-PERMISSIONS: dict[str, frozenset[str]] = {
-    "operator": _OPERATOR,
-    "engineer": _ENGINEER,
-    "auditor": frozenset({"alarms", "audit"}),
-    "admin": _ENGINEER | {"users"},
+
+class Role(StrEnum):
+    OPERATOR = "operator"
+    ENGINEER = "engineer"
+    AUDITOR = "auditor"
+    ADMIN = "admin"
+
+
+class Permission(StrEnum):
+    """What a page or API route needs; each role has a set of them."""
+
+    TASKS = "tasks"  # task cards: confirm, maintenance done, approve or reject
+    ALARMS = "alarms"  # see the alarms
+    ACKNOWLEDGE = "acknowledge"  # acknowledge, shelve and unshelve alarms
+    STATION = "station"  # the live station view
+    CONTROL = "control"  # start and cancel intentions, restart mode, resets, estimates
+    MODEL = "model"  # edit and save model versions
+    ACTIVATE = "activate"  # run another model version
+    SIMULATE = "simulate"  # the simulation panel: experiments and faults
+    AUDIT = "audit"  # the audit log
+    USERS = "users"  # add, disable and change users
+
+
+ROLES = tuple(role.value for role in Role)
+_OPERATOR = frozenset({Permission.TASKS, Permission.ALARMS, Permission.ACKNOWLEDGE})
+_ENGINEER = _OPERATOR | {
+    Permission.STATION,
+    Permission.CONTROL,
+    Permission.MODEL,
+    Permission.ACTIVATE,
+    Permission.SIMULATE,
+    Permission.AUDIT,
+}
+PERMISSIONS: dict[Role, frozenset[Permission]] = {
+    Role.OPERATOR: _OPERATOR,
+    Role.ENGINEER: _ENGINEER,
+    Role.AUDITOR: frozenset({Permission.ALARMS, Permission.AUDIT}),
+    Role.ADMIN: _ENGINEER | {Permission.USERS},
 }
 
 # the demo station's users and their first-login passwords (printed on start, in the README)
@@ -90,8 +120,10 @@ def user_named(session: Session, name: str) -> User | None:
     return session.scalars(select(User).where(User.name == name)).first()
 
 
-def allowed(role: str, permission: str) -> bool:
-    return permission in PERMISSIONS.get(role, frozenset())
+def allowed(role: str, permission: Permission) -> bool:
+    """May a user of `role` (as stored: a role's text) do what `permission` covers?"""
+    known = role in ROLES
+    return known and permission in PERMISSIONS[Role(role)]
 
 
 def secret_key(session: Session) -> str:

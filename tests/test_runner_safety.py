@@ -411,3 +411,20 @@ def test_the_devices_are_told_the_commands_only() -> None:
     cycle = StationCycle(runner, world, runner.initial(0.0))
     cycle.step(0.1)
     assert written and all(set(w) == {"press.down"} for w in written)
+
+
+def test_a_step_of_a_silent_resource_or_a_timed_out_effect_is_blocked_with_why() -> None:
+    runner = runner_for(PRESS)
+    state = runner.initial(0.0)
+    state.unavailable.add("press")
+    plan = plan_of(runner, "press.down", ["press.lower"])
+    tick = Tick(runner, state, 1.0)
+    assert not take(tick, plan, 0, supervised=True)
+    assert [(e.kind, e.detail["why"]) for e in tick.events] == [
+        (EventKind.BLOCKED, "press is not answering")
+    ]
+    assert state.values["press.down"] is False
+    state.unavailable.clear()
+    state.timed_out.add("press.lower")
+    assert not take(tick, plan, 0, supervised=True)
+    assert tick.events[-1].detail["why"] == "it did not happen in time and is disabled"

@@ -123,3 +123,18 @@ def test_an_admin_adds_and_disables_users(station: RunningStation) -> None:
     assert engineer.get("/station", follow_redirects=False).status_code == 303  # signed out
     subjects = {(r.subject, r.user) for r in audit_kinds(station, "user")}
     assert ("added", "admin") in subjects and ("disabled", "admin") in subjects
+
+
+def test_each_role_has_exactly_its_permissions_and_an_unknown_role_none() -> None:
+    from app.auth import ROLES, Permission, allowed
+
+    may = {role: {p.value for p in Permission if allowed(role, p)} for role in ROLES}
+    operator = {"tasks", "alarms", "acknowledge"}
+    engineer = operator | {"station", "control", "model", "activate", "simulate", "audit"}
+    assert may == {
+        "operator": operator,
+        "engineer": engineer,
+        "auditor": {"alarms", "audit"},
+        "admin": engineer | {"users"},
+    }
+    assert not any(allowed("superuser", p) for p in Permission)

@@ -16,6 +16,7 @@ from fastapi import APIRouter, Depends, HTTPException, Path, Query, Request
 from fastapi.responses import JSONResponse
 from fastapi.security import HTTPBearer
 
+from app.auth import Permission
 from app.live_station import StationError
 from app.store import audit, versions
 from app.views import task_cards
@@ -109,7 +110,8 @@ def _acted(events: list[Event]) -> ActionAnswer:
     responses=_errors(401, 403),
 )
 def get_station(
-    request: Request, _caller: Annotated[Caller, Depends(require("station", "tasks"))]
+    request: Request,
+    _caller: Annotated[Caller, Depends(require(Permission.STATION, Permission.TASKS))],
 ) -> StationOut:
     """Needs `station` or `tasks`.  Plans list their steps with the partial order: each step
     waits for the steps in its `after` list; the others may run in parallel."""
@@ -124,7 +126,7 @@ def get_station(
     responses=_errors(401, 403),
 )
 def get_tasks(
-    request: Request, _caller: Annotated[Caller, Depends(require("tasks"))]
+    request: Request, _caller: Annotated[Caller, Depends(require(Permission.TASKS))]
 ) -> list[TaskCardOut]:
     """Approvals first (nothing runs without them), then maintenance steps, then the
     operator's command card.  Needs `tasks`."""
@@ -139,7 +141,7 @@ def get_tasks(
 )
 async def card_done(
     request: Request,
-    caller: Annotated[Caller, Depends(require("tasks"))],
+    caller: Annotated[Caller, Depends(require(Permission.TASKS))],
     card: Annotated[str, Path(min_length=1, max_length=100, description="the card's value")],
 ) -> CardDoneOut:
     """409 when the card is no longer shown, or cannot be confirmed now.  Needs `tasks`."""
@@ -160,7 +162,7 @@ async def card_done(
 )
 async def maintenance_done(
     request: Request,
-    caller: Annotated[Caller, Depends(require("tasks"))],
+    caller: Annotated[Caller, Depends(require(Permission.TASKS))],
     transition: NamePath,
 ) -> ActionAnswer:
     """Only a step an instruction card asks for now (see GET /api/tasks); 404 for a name
@@ -178,7 +180,7 @@ async def maintenance_done(
 )
 async def approval(
     request: Request,
-    caller: Annotated[Caller, Depends(require("tasks"))],
+    caller: Annotated[Caller, Depends(require(Permission.TASKS))],
     step: Annotated[int, Path(ge=0, le=10_000, description="the recovery plan's step")],
     body: ApprovalIn,
 ) -> ActionAnswer:
@@ -201,7 +203,9 @@ async def approval(
     responses=ACT,
 )
 async def start_intention(
-    request: Request, caller: Annotated[Caller, Depends(require("control"))], name: NamePath
+    request: Request,
+    caller: Annotated[Caller, Depends(require(Permission.CONTROL))],
+    name: NamePath,
 ) -> ActionAnswer:
     """The intention runs as soon as its precondition holds.  Needs `control`."""
     live = server(request).live
@@ -216,7 +220,9 @@ async def start_intention(
     responses=ACT,
 )
 async def cancel_intention(
-    request: Request, caller: Annotated[Caller, Depends(require("control"))], name: NamePath
+    request: Request,
+    caller: Annotated[Caller, Depends(require(Permission.CONTROL))],
+    name: NamePath,
 ) -> ActionAnswer:
     """Needs `control`."""
     live = server(request).live
@@ -231,7 +237,9 @@ async def cancel_intention(
     responses=ACT,
 )
 async def restart(
-    request: Request, caller: Annotated[Caller, Depends(require("control"))], body: RestartIn
+    request: Request,
+    caller: Annotated[Caller, Depends(require(Permission.CONTROL))],
+    body: RestartIn,
 ) -> ActionAnswer:
     """Restart mode pauses automatic operation starts, allows resets, restart abilities and
     setting estimated variables.  Entering needs a reason.  Needs `control`."""
@@ -252,7 +260,9 @@ async def restart(
     responses=ACT,
 )
 async def reset_operation(
-    request: Request, caller: Annotated[Caller, Depends(require("control"))], name: NamePath
+    request: Request,
+    caller: Annotated[Caller, Depends(require(Permission.CONTROL))],
+    name: NamePath,
 ) -> ActionAnswer:
     """The station plans to reach the operation's precondition; 409 outside restart mode.
     Needs `control`."""
@@ -268,7 +278,9 @@ async def reset_operation(
     responses=ACT,
 )
 async def set_estimated(
-    request: Request, caller: Annotated[Caller, Depends(require("control"))], body: EstimatedIn
+    request: Request,
+    caller: Annotated[Caller, Depends(require(Permission.CONTROL))],
+    body: EstimatedIn,
 ) -> ActionAnswer:
     """`value` is one of the variable's values (true/false for a boolean); the reason is
     recorded.  Needs `control`."""
@@ -286,7 +298,9 @@ async def set_estimated(
     responses=ACT,
 )
 async def reenable_effect(
-    request: Request, caller: Annotated[Caller, Depends(require("control"))], name: NamePath
+    request: Request,
+    caller: Annotated[Caller, Depends(require(Permission.CONTROL))],
+    name: NamePath,
 ) -> ActionAnswer:
     """409 when the effect is not timed out.  Needs `control`."""
     live = server(request).live
@@ -304,7 +318,7 @@ async def reenable_effect(
     responses=_errors(401, 403),
 )
 def get_alarms(
-    request: Request, _caller: Annotated[Caller, Depends(require("alarms"))]
+    request: Request, _caller: Annotated[Caller, Depends(require(Permission.ALARMS))]
 ) -> list[AlarmOut]:
     """Unacknowledged first, then by priority, then newest.  Needs `alarms`."""
     return [alarm_out(a) for a in server(request).live.view.alarms]
@@ -327,7 +341,7 @@ def _alarm_key(request: Request, key: str) -> str:
 )
 async def acknowledge(
     request: Request,
-    caller: Annotated[Caller, Depends(require("acknowledge"))],
+    caller: Annotated[Caller, Depends(require(Permission.ACKNOWLEDGE))],
     body: AcknowledgeIn,
 ) -> AlarmChangeOut:
     """Keys contain ':' (resource:r2), so they travel in the body.  Needs `acknowledge`."""
@@ -343,7 +357,9 @@ async def acknowledge(
     responses=ACT,
 )
 async def shelve(
-    request: Request, caller: Annotated[Caller, Depends(require("acknowledge"))], body: ShelveIn
+    request: Request,
+    caller: Annotated[Caller, Depends(require(Permission.ACKNOWLEDGE))],
+    body: ShelveIn,
 ) -> AlarmChangeOut:
     """It comes back by itself after `minutes` (at most a shift).  Needs `acknowledge`."""
     key = _alarm_key(request, body.key)
@@ -360,7 +376,7 @@ async def shelve(
 )
 async def unshelve(
     request: Request,
-    caller: Annotated[Caller, Depends(require("acknowledge"))],
+    caller: Annotated[Caller, Depends(require(Permission.ACKNOWLEDGE))],
     body: UnshelveIn,
 ) -> AlarmChangeOut:
     """Needs `acknowledge`."""
@@ -378,7 +394,7 @@ async def unshelve(
     responses=_errors(401, 403),
 )
 def list_models(
-    request: Request, _caller: Annotated[Caller, Depends(require("model"))]
+    request: Request, _caller: Annotated[Caller, Depends(require(Permission.MODEL))]
 ) -> list[ModelVersionOut]:
     """Needs `model`."""
     srv = server(request)
@@ -398,7 +414,7 @@ VersionNumber = Annotated[int, Path(ge=1, le=1_000_000_000, description="the ver
 )
 def get_model(
     request: Request,
-    _caller: Annotated[Caller, Depends(require("model"))],
+    _caller: Annotated[Caller, Depends(require(Permission.MODEL))],
     number: VersionNumber,
 ) -> ModelTextOut:
     """Needs `model`."""
@@ -424,7 +440,7 @@ def get_model(
 )
 def save_model(
     request: Request,
-    caller: Annotated[Caller, Depends(require("model"))],
+    caller: Annotated[Caller, Depends(require(Permission.MODEL))],
     body: ModelIn,
 ) -> Any:
     """The text is checked as `sp check` would; a valid one becomes the next version (not
@@ -453,7 +469,7 @@ def save_model(
 )
 async def activate_model(
     request: Request,
-    caller: Annotated[Caller, Depends(require("activate"))],
+    caller: Annotated[Caller, Depends(require(Permission.ACTIVATE))],
     number: VersionNumber,
 ) -> ActivatedOut:
     """Refused (409) while the station runs intentions or operations, unless it is in
@@ -479,7 +495,7 @@ def _simulated(request: Request) -> Server:
     responses=_errors(401, 403, 404),
 )
 def list_experiments(
-    request: Request, _caller: Annotated[Caller, Depends(require("simulate"))]
+    request: Request, _caller: Annotated[Caller, Depends(require(Permission.SIMULATE))]
 ) -> list[ExperimentOut]:
     """404 on a station with real devices.  Needs `simulate`."""
     return [
@@ -501,7 +517,7 @@ def list_experiments(
 )
 async def play_experiment(
     request: Request,
-    caller: Annotated[Caller, Depends(require("simulate"))],
+    caller: Annotated[Caller, Depends(require(Permission.SIMULATE))],
     experiment: Annotated[str, Path(min_length=1, max_length=100, description="its id")],
 ) -> ExperimentStarted:
     """The experiment's faults are armed and its intentions started; its operator steps
@@ -524,7 +540,7 @@ async def play_experiment(
 )
 def get_audit(
     request: Request,
-    _caller: Annotated[Caller, Depends(require("audit"))],
+    _caller: Annotated[Caller, Depends(require(Permission.AUDIT))],
     chosen: Annotated[Criteria, Depends(filter_dependency)],
     page: Annotated[int, Query(ge=1, le=1_000_000_000, description="1-based")] = 1,
 ) -> AuditPageOut:

@@ -21,6 +21,7 @@ from fastapi import APIRouter, Depends, HTTPException, Query, Request
 from fastapi.responses import Response, StreamingResponse
 from sqlalchemy.orm import Session
 
+from app.auth import Permission
 from app.store import audit
 from app.store.audit import AuditEntry, AuditFilter
 from app.store.tables import AuditRecord
@@ -271,7 +272,7 @@ def time_input(time: float | None) -> str:
 @router.get("/audit")
 def audit_page(
     request: Request,
-    caller: Annotated[Caller, Depends(require("audit"))],
+    caller: Annotated[Caller, Depends(require(Permission.AUDIT))],
     since: str = "",
     until: str = "",
     user: str = "",
@@ -358,7 +359,7 @@ def _with(values: list[str], chosen: str) -> list[str]:
 @router.get("/audit.csv")
 def audit_csv(
     request: Request,
-    caller: Annotated[Caller, Depends(require("audit"))],
+    caller: Annotated[Caller, Depends(require(Permission.AUDIT))],
     chosen: Annotated[Criteria, Depends(filter_dependency)],
 ) -> StreamingResponse:
     """The filtered log as CSV, oldest first; the export is audited before it starts."""

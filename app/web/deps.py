@@ -14,7 +14,7 @@ from typing import Any
 
 from fastapi import HTTPException, Request
 
-from app.auth import allowed, new_csrf_token, same_token
+from app.auth import Permission, allowed, new_csrf_token, same_token
 from app.station_view import StationView
 from app.store.tables import User
 from app.web.server import Server
@@ -92,7 +92,7 @@ async def check_csrf(request: Request, caller: Caller) -> None:
         raise HTTPException(403, "the form has expired or did not come from this station; reload")
 
 
-def require(*permissions: str) -> Callable[[Request], Awaitable[Caller]]:
+def require(*permissions: Permission) -> Callable[[Request], Awaitable[Caller]]:
     """A dependency: the caller, who must be signed in and hold one of `permissions`."""
 
     async def dependency(request: Request) -> Caller:

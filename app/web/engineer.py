@@ -17,7 +17,7 @@ from fastapi import APIRouter, Depends, Form, HTTPException, Query, Request
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
 
 from app import plan_view
-from app.auth import allowed
+from app.auth import Permission, allowed
 from app.station_cycle import ScheduledFault
 from app.station_view import StationView
 from app.store import versions
@@ -50,11 +50,11 @@ from planner.runner import (
 
 router = APIRouter(include_in_schema=False)
 
-Station = Annotated[Caller, Depends(require("station"))]
-Control = Annotated[Caller, Depends(require("control"))]
-ModelEditor = Annotated[Caller, Depends(require("model"))]
-Activator = Annotated[Caller, Depends(require("activate"))]
-Simulator = Annotated[Caller, Depends(require("simulate"))]
+Station = Annotated[Caller, Depends(require(Permission.STATION))]
+Control = Annotated[Caller, Depends(require(Permission.CONTROL))]
+ModelEditor = Annotated[Caller, Depends(require(Permission.MODEL))]
+Activator = Annotated[Caller, Depends(require(Permission.ACTIVATE))]
+Simulator = Annotated[Caller, Depends(require(Permission.SIMULATE))]
 Name = Annotated[str, Form(max_length=200)]
 Reason = Annotated[str, Form(max_length=500)]
 RECENT_PLANS = 6
@@ -65,8 +65,8 @@ def values_for(
 ) -> dict[str, Any]:
     """The page context; `view` is the one snapshot the whole page or fragment reads."""
     found = page_context(request, caller, page, view=view, **extra)
-    found["can_control"] = allowed(caller.role, "control")
-    found["can_activate"] = allowed(caller.role, "activate")
+    found["can_control"] = allowed(caller.role, Permission.CONTROL)
+    found["can_activate"] = allowed(caller.role, Permission.ACTIVATE)
     return found
 
 

@@ -7,6 +7,7 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Depends, Form, Request
 from fastapi.responses import RedirectResponse, Response
 
+from app.auth import Permission, Role
 from app.views import task_cards
 from app.web.actions import answer, maintenance_step, perform
 from app.web.deps import Caller, current_caller, page_context, require, server
@@ -43,7 +44,7 @@ def tasks(request: Request) -> Response:
     caller = current_caller(request)
     if caller is None:
         return RedirectResponse("/login", status_code=303)
-    if caller.role == "auditor":
+    if caller.role == Role.AUDITOR:
         return RedirectResponse("/audit", status_code=303)
     return render(
         request, "tasks.html", caller, "tasks", cards=task_cards(server(request).live.view)
@@ -52,7 +53,7 @@ def tasks(request: Request) -> Response:
 
 @router.get("/fragments/tasks")
 async def tasks_fragment(
-    request: Request, caller: Annotated[Caller, Depends(require("tasks"))]
+    request: Request, caller: Annotated[Caller, Depends(require(Permission.TASKS))]
 ) -> Response:
     return render(
         request, "_tasks.html", caller, "tasks", cards=task_cards(server(request).live.view)
@@ -62,7 +63,7 @@ async def tasks_fragment(
 @router.post("/tasks/done")
 async def card_done(
     request: Request,
-    caller: Annotated[Caller, Depends(require("tasks"))],
+    caller: Annotated[Caller, Depends(require(Permission.TASKS))],
     card: Annotated[str, Form(max_length=100)],
 ) -> Response:
     await answer(server(request).live.confirm_card(caller.name, card))
@@ -72,7 +73,7 @@ async def card_done(
 @router.post("/tasks/maintenance")
 async def maintenance_done(
     request: Request,
-    caller: Annotated[Caller, Depends(require("tasks"))],
+    caller: Annotated[Caller, Depends(require(Permission.TASKS))],
     transition: Annotated[str, Form(max_length=200)],
 ) -> Response:
     live = server(request).live
@@ -84,7 +85,7 @@ async def maintenance_done(
 @router.post("/tasks/approve")
 async def approve(
     request: Request,
-    caller: Annotated[Caller, Depends(require("tasks"))],
+    caller: Annotated[Caller, Depends(require(Permission.TASKS))],
     step: Annotated[int, Form(ge=0, le=10_000)],
     decision: Annotated[str, Form(pattern="^(approve|reject)$")] = "approve",
 ) -> Response:
@@ -107,7 +108,7 @@ def alarms(request: Request) -> Response:
 
 @router.get("/fragments/alarms")
 async def alarms_fragment(
-    request: Request, caller: Annotated[Caller, Depends(require("alarms"))]
+    request: Request, caller: Annotated[Caller, Depends(require(Permission.ALARMS))]
 ) -> Response:
     return render(
         request, "_alarms.html", caller, "alarms", alarms=server(request).live.view.alarms
@@ -117,7 +118,7 @@ async def alarms_fragment(
 @router.post("/alarms/acknowledge")
 async def acknowledge(
     request: Request,
-    caller: Annotated[Caller, Depends(require("acknowledge"))],
+    caller: Annotated[Caller, Depends(require(Permission.ACKNOWLEDGE))],
     key: Annotated[str, Form(max_length=200)],
     note: Annotated[str, Form(max_length=500)] = "",
 ) -> Response:
@@ -128,7 +129,7 @@ async def acknowledge(
 @router.post("/alarms/shelve")
 async def shelve(
     request: Request,
-    caller: Annotated[Caller, Depends(require("acknowledge"))],
+    caller: Annotated[Caller, Depends(require(Permission.ACKNOWLEDGE))],
     key: Annotated[str, Form(max_length=200)],
     minutes: Annotated[float, Form(gt=0, le=480)],
     note: Annotated[str, Form(max_length=500)] = "",
@@ -140,7 +141,7 @@ async def shelve(
 @router.post("/alarms/unshelve")
 async def unshelve(
     request: Request,
-    caller: Annotated[Caller, Depends(require("acknowledge"))],
+    caller: Annotated[Caller, Depends(require(Permission.ACKNOWLEDGE))],
     key: Annotated[str, Form(max_length=200)],
 ) -> Response:
     await answer(server(request).live.unshelve(key, caller.name))

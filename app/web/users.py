@@ -10,7 +10,7 @@ from fastapi import APIRouter, Depends, Form, HTTPException, Request
 from fastapi.responses import Response
 from sqlalchemy import select
 
-from app.auth import ROLES, add_user, password_problem, user_named
+from app.auth import ROLES, Permission, add_user, password_problem, user_named
 from app.store import audit
 from app.store.audit import AuditEntry
 from app.store.tables import User
@@ -36,14 +36,16 @@ def _page(request: Request, caller: Caller, status: int = 200, **extra: object) 
 
 
 @router.get("/users")
-def users(request: Request, caller: Annotated[Caller, Depends(require("users"))]) -> Response:
+def users(
+    request: Request, caller: Annotated[Caller, Depends(require(Permission.USERS))]
+) -> Response:
     return _page(request, caller)
 
 
 @router.post("/users")
 def add(
     request: Request,
-    caller: Annotated[Caller, Depends(require("users"))],
+    caller: Annotated[Caller, Depends(require(Permission.USERS))],
     name: Annotated[str, Form(max_length=64)],
     role: Annotated[str, Form(max_length=16)],
     password: Annotated[str, Form(max_length=200)],
@@ -73,7 +75,7 @@ def add(
 @router.post("/users/disable")
 def disable(
     request: Request,
-    caller: Annotated[Caller, Depends(require("users"))],
+    caller: Annotated[Caller, Depends(require(Permission.USERS))],
     name: Annotated[str, Form(max_length=64)],
     disabled: Annotated[bool, Form()],
 ) -> Response:
