@@ -99,7 +99,7 @@ class LiveStation:
         self.wall = wall
         self.started_at = clock()
         self.model = model
-        self.config = self._person_config(config or RunnerConfig(auto_intentions=frozenset()))
+        self.config = config or RunnerConfig(auto_intentions=frozenset())
         self.requests: queue.Queue[_Request] = queue.Queue()
         self.recent: deque[Event] = deque(maxlen=RECENT_EVENTS)
         self.updates: PageUpdates[StationView] = PageUpdates()
@@ -124,13 +124,6 @@ class LiveStation:
         self.view = self._make_view(now)
 
     # -- set-up ---------------------------------------------------------------------------------
-
-    def _person_config(self, config: RunnerConfig) -> RunnerConfig:
-        """A person's confirmation is never timed out: the operator takes the time it takes."""
-        names = {t.name for t in self.model.station.model.transitions}
-        if CONFIRM_EFFECT not in names:
-            return config
-        return replace(config, effect_timeouts={**config.effect_timeouts, CONFIRM_EFFECT: None})
 
     @staticmethod
     def _runner(model: ActiveModel, config: RunnerConfig) -> Runner:
@@ -364,7 +357,6 @@ class LiveStation:
             raise StationError(f"{why}; activate when it is idle or in restart mode")
         old = self.model
         self.model = model
-        self.config = self._person_config(self.config)
         runner = self._runner(model, self.config)
         state = carry_over(self.state, runner, now)
         variables = model.station.model.variable_index
@@ -378,7 +370,7 @@ class LiveStation:
     def _start_experiment(
         self, scenario: Scenario, title: str, now: float, user: str, entries: list[AuditEntry]
     ) -> None:
-        config = self._person_config(replace(scenario.config, auto_intentions=frozenset()))
+        config = replace(scenario.config, auto_intentions=frozenset())
         runner = self._runner(self.model, config)
         state = runner.initial(now, scenario.start)
         self.world = self._world(state.values, scenario)

@@ -41,6 +41,7 @@ from planner.runner import (
     StartIntention,
 )
 from planner.runner.queries import QueryObserver
+from planner.runner.waiting import waiting_for
 from planner.station import Station
 from planner.transition_planner import TransitionPlanner
 
@@ -372,7 +373,10 @@ def play(
         now = round(now + step, 6)
         if speed > 0:
             sleep(step / speed)
-    yield Event(now, EventKind.STOPPED, "time limit", {"until": scenario.until})
+    waiting = [w.as_json() for w in waiting_for(runner, cycle.state)]
+    yield Event(
+        now, EventKind.STOPPED, "time limit", {"until": scenario.until, "waiting_for": waiting}
+    )
 
 
 def _operator_answers(event: Event, scenario: Scenario, now: float) -> list[tuple[float, Action]]:

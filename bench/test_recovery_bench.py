@@ -132,8 +132,10 @@ def test_a_short_play_in_a_child_process_becomes_a_row_of_the_table(tmp_path: Pa
     unannounced_count = count - 6
     row = next(r for r in queries_table(rows).splitlines() if r.startswith("| never_torque |"))
     cells = [c.strip() for c in row.strip("|").split("|")]
-    assert cells[1:4] == [
-        "stopped at its time limit (5 s)",
+    assert cells[1].startswith(
+        "stopped at its time limit (5 s), waiting for engineer: nr.run_nut.torque ("
+    )
+    assert cells[2:4] == [
         "2",
         f"{count} ({recovery}; {unannounced_count})",
     ]

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
+from enum import StrEnum
 
 import yaml
 
@@ -42,7 +43,7 @@ from planner.loading import (
 from planner.model import Model, Specification, Transition, TransitionKind, Variable
 
 STATION_KEYS = ("station", "description", "resources", "operations", "intentions")
-_RESOURCE_KEYS = ("name", "description", "variables", "abilities", "transitions")
+_RESOURCE_KEYS = ("name", "description", "kind", "variables", "abilities", "transitions")
 _ABILITY_KEYS = (
     "name",
     "description",
@@ -83,6 +84,14 @@ class Ability:
         return f"{self.resource}.{self.name}"
 
 
+class ResourceKind(StrEnum):
+    """Who a resource's effects come from: a device, timed out when late, or a person (an
+    operator with a watch), who takes the time the work takes and is never timed out."""
+
+    DEVICE = "device"
+    PERSON = "person"
+
+
 @dataclass(frozen=True)
 class Resource:
     name: str
@@ -90,6 +99,11 @@ class Resource:
     variables: tuple[str, ...]
     abilities: tuple[str, ...]  # qualified ability names
     transitions: tuple[str, ...]  # every transition belonging to the resource
+    kind: ResourceKind = ResourceKind.DEVICE
+
+    @property
+    def person(self) -> bool:
+        return self.kind is ResourceKind.PERSON
 
 
 @dataclass(frozen=True)
@@ -249,6 +263,7 @@ def read_station(reader: Reader, top: Fields) -> Station:
                 tuple(aliases.values()),
                 tuple(ability_names),
                 tuple(own),
+                _resource_kind(reader, fields.get("kind")),
             )
         )
 
@@ -574,3 +589,15 @@ def _description(reader: Reader, fields: Fields) -> str:
     if "description" not in fields:
         return ""
     return reader.scalar(fields["description"][1], "description") or ""
+
+
+def _resource_kind(reader: Reader, field: tuple[yaml.Node, yaml.Node] | None) -> ResourceKind:
+    if field is None:
+        return ResourceKind.DEVICE
+    text = reader.scalar(field[1], "kind")
+    kinds = [k.value for k in ResourceKind]
+    if text not in kinds:
+        if text is not None:
+            reader.error(field[1], f"a resource's kind is one of {', '.join(kinds)}, not '{text}'")
+        return ResourceKind.DEVICE
+    return ResourceKind(text)

@@ -428,3 +428,84 @@ def test_a_step_of_a_silent_resource_or_a_timed_out_effect_is_blocked_with_why()
     state.timed_out.add("press.lower")
     assert not take(tick, plan, 0, supervised=True)
     assert tick.events[-1].detail["why"] == "it did not happen in time and is disabled"
+
+
+# -- what the station waits for, and people's time -------------------------------------------
+
+NOD = """
+station: nod
+variables:
+  - {name: part.checked, domain: bool, kind: decision}
+resources:
+  - name: inspector
+    kind: person
+    variables:
+      - {name: asked, domain: bool, kind: command}
+      - {name: nodded, domain: bool, kind: measured}
+    transitions:
+      - {name: ask, guard: "!asked && !part.checked", actions: ["asked := true"]}
+      - {name: nod, kind: effect, guard: "asked && !nodded", actions: ["nodded := true"]}
+      - {name: done, kind: automatic, guard: "asked && nodded && !part.checked",
+         actions: ["asked := false", "part.checked := true"]}
+  - name: gauge
+    variables:
+      - {name: on, domain: bool, kind: command}
+      - {name: ready, domain: bool, kind: measured}
+    transitions:
+      - {name: switch_on, guard: "!on", actions: ["on := true"]}
+      - {name: warm, kind: effect, guard: "on && !ready", actions: ["ready := true"]}
+operations:
+  - {name: check, precondition: "!part.checked", effects: ["part.checked := true"]}
+intentions:
+  - {name: checked, goal: "part.checked"}
+"""
+
+
+def test_a_persons_effect_is_never_timed_out_as_a_devices_is() -> None:
+    runner = runner_for(NOD, RunnerConfig(auto_intentions=frozenset(), effect_timeout=1.0))
+    assert runner.index.person_effects == {"inspector.nod"}
+    state = runner.initial(0.0, {"inspector.asked": True, "gauge.on": True})
+    heard = everyone(runner)
+    timed_out: list[str] = []
+    for k in range(40):  # 4 s: both effects enabled all along, neither happens
+        result = runner.tick(state, Inputs(heartbeats=heard), k / 10)
+        state = result.state
+        timed_out += [e.subject for e in result.events if e.kind is EventKind.TIMEOUT]
+    assert timed_out == ["gauge.warm"]
+    # the configuration may still give a person's effect a time-out of its own
+    config = RunnerConfig(effect_timeouts={"inspector.nod": 1.0})
+    assert config.timeout_of("inspector.nod", person=True) == 1.0
+    assert config.timeout_of("gauge.warm") == config.effect_timeout
+
+
+def test_waiting_for_names_who_must_act(demo_runner: Runner) -> None:
+    from planner.runner.waiting import Who, waiting_for
+
+    runner = demo_runner
+    state = runner.initial(0.0)
+    assert waiting_for(runner, state) == []  # no intention active
+    state.intentions["tighten_bolts"] = IntentionState.ERROR
+    state.intention_causes["tighten_bolts"] = "no operation plan reaches its goal"
+    [stuck] = waiting_for(runner, state)
+    assert (stuck.who, stuck.subject) == (Who.ENGINEER, "tighten_bolts")
+    assert "no operation plan reaches its goal" in stuck.what
+    state.unavailable.add("r2")
+    plan = plan_of(runner, "true", ["operator.move_r2_home"])
+    plan.asked.add(0)
+    state.maintenance, state.maintenance_for = plan, "get_nr_r2"
+    items = [(w.who, w.subject) for w in waiting_for(runner, state)]
+    assert items == [(Who.OPERATOR, "operator.move_r2_home"), (Who.DEVICE, "r2")]
+
+
+def test_a_run_that_stops_says_what_it_waits_for() -> None:
+    """E6 with nobody to move r2 home: the last event names the operator's step."""
+    station = load_station(MODEL.read_text(), str(MODEL))
+    planners = Planners(TransitionPlanner(station.model), OperationPlanner(station))
+    path = ROOT / "models" / "scenarios" / "e6_r2_disconnects_above_engine.yaml"
+    scenario = load_scenario(path.read_text(), str(path), station)
+    scenario = replace(scenario, maintenance=False, until=40.0)
+    last = list(play(station, scenario, planners))[-1]
+    assert last.kind is EventKind.STOPPED and last.subject == "time limit"
+    waiting = last.detail["waiting_for"]
+    assert {"who": "operator", "subject": "operator.move_r2_home"}.items() <= waiting[0].items()
+    assert {"who": "device", "subject": "r2", "what": "r2 to answer again"} in waiting

@@ -2,8 +2,9 @@
 
 An effect whose guard has held longer than its time-out without happening is timed out:
 disabled in planning queries (the "w/ETO" of a label) and the transition plan is made
-again.  It is re-enabled when its guard stops holding or a person re-enables it.  An effect
-with no time-out (a person's confirmation) is never timed out.
+again.  It is re-enabled when its guard stops holding or a person re-enables it.  The
+effects of a person's resource (`kind: person`: an operator confirming a card) have no
+time-out unless the configuration gives one.
 """
 
 from __future__ import annotations
@@ -42,7 +43,7 @@ def monitor_effects(tick: Tick) -> None:
                 tick.emit(EventKind.REENABLED, name, why="its guard no longer holds")
             continue
         since = state.effect_enabled_since.setdefault(name, tick.now)
-        timeout = tick.config.timeout_of(name)
+        timeout = tick.config.timeout_of(name, person=name in index.person_effects)
         if timeout is not None and name not in state.timed_out and tick.now - since > timeout:
             state.timed_out.add(name)
             tick.emit(EventKind.TIMEOUT, name, waited=round(tick.now - since, 3))

@@ -36,10 +36,12 @@ class RunnerConfig:
     # measured preconditions (a camera's result is lost when its robot makes way for the other)
     parallel_operations: bool = False
 
-    def timeout_of(self, effect: str) -> float | None:
+    def timeout_of(self, effect: str, *, person: bool = False) -> float | None:
+        """The time-out of `effect`: its own, else none for a person's effect (people take
+        the time the work takes), else the devices' `effect_timeout`."""
         if effect in self.effect_timeouts:
             return self.effect_timeouts[effect]
-        return self.effect_timeout
+        return None if person else self.effect_timeout
 
 
 @dataclass(frozen=True)

@@ -44,6 +44,14 @@ class StationIndex:
             for name in resource.transitions:
                 self.owner[name] = resource.name
         self.resource_transitions = {r.name: frozenset(r.transitions) for r in station.resources}
+        # the effects people bring about: never timed out as a device's would be
+        self.person_effects = frozenset(
+            name
+            for resource in station.resources
+            if resource.person
+            for name in resource.transitions
+            if name in self.effect_position
+        )
         self.intentions: dict[str, Intention] = {i.name: i for i in station.intentions}
         self.operations: dict[str, Operation] = {o.name: o for o in station.operations}
         self.intention_precondition = {
