@@ -12,7 +12,8 @@ from pathlib import Path
 import pytest
 
 from app.scenario import Planners, load_scenario, play
-from app.station_cycle import StationCycle
+from app.station_cycle import ScheduledFault, StationCycle
+from hw.faults import Fault, FaultKind
 from hw.sim import SimulatedWorld
 from planner.expressions import Value, parse_expr
 from planner.loading import scope_for
@@ -509,3 +510,30 @@ def test_a_run_that_stops_says_what_it_waits_for() -> None:
     waiting = last.detail["waiting_for"]
     assert {"who": "operator", "subject": "operator.move_r2_home"}.items() <= waiting[0].items()
     assert {"who": "device", "subject": "r2", "what": "r2 to answer again"} in waiting
+
+
+def test_a_recovery_with_every_way_out_rejected_holds_quietly_and_says_whom_it_waits_for() -> None:
+    """E2 with both offered recoveries rejected: the station plans once more, finds nothing,
+    says so once and holds; no forbidden/plan pair every tick, and the stop names the
+    engineer.  Once the operator takes the filters off by hand, production goes on."""
+    station = load_station(MODEL.read_text(), str(MODEL))
+    planners = Planners(TransitionPlanner(station.model), OperationPlanner(station))
+    path = ROOT / "bench" / "scenarios" / "reject_oil_filter_removal_and_alternative.yaml"
+    scenario = replace(load_scenario(path.read_text(), str(path), station), until=40.0)
+    events = list(play(station, scenario, planners))
+    after = [e for e in events if e.time >= 22.0]
+    plans = [e for e in after if e.kind is EventKind.PLAN]
+    assert [(p.subject, p.detail["status"]) for p in plans] == [("TP w/MT", "unreachable")]
+    assert [e.subject for e in after if e.kind is EventKind.ERROR] == ["no recovery plan"]
+    assert [e.time for e in after if e.kind is EventKind.FORBIDDEN] == [22.0]
+    last = events[-1]
+    assert last.kind is EventKind.STOPPED
+    [waiting] = last.detail["waiting_for"]
+    assert (waiting["who"], waiting["subject"]) == ("engineer", "oil_filters_after_bolts")
+
+    # a person puts it right by hand: the state changed, and production goes on
+    removed = {f"oil_filter{k}.state": "none" for k in (1, 2, 3)}
+    fix = ScheduledFault(Fault(FaultKind.SET, values=removed), at=30.0, text="taken off by hand")
+    fixed = replace(scenario, faults=(*scenario.faults, fix), until=400.0)
+    events = list(play(station, fixed, planners))
+    assert events[-1].kind is EventKind.DONE

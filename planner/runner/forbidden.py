@@ -10,6 +10,8 @@ specification holds and the state is not bad.
     no recovery --violation--> plan found: steps shown for approval as their turn comes
     step asked --approve--> approved --taken / done by the operator--> next step
     step asked --reject--> plan made again without it
+    no plan (everything rejected) --> hold: nothing moves, said once (an `error` event)
+    holding --the state or what planning may use changes--> rejections forgotten, plan again
     every specification holds and the state is good --> recovered, production replans
 """
 
@@ -35,6 +37,9 @@ def recover(tick: Tick) -> None:
     violated = tick.index.semantics.violated(tick.current())
     if state.recovery is None:
         if not violated:
+            state.recovery_held = None
+            return
+        if holding(tick):
             return
         plan_recovery(tick, violated)
     plan = state.recovery
@@ -62,6 +67,20 @@ def recover(tick: Tick) -> None:
         take(tick, plan, k, supervised=False)
 
 
+def holding(tick: Tick) -> bool:
+    """Recovery found no plan here: plan again only once something changed (the state, or
+    what planning may use), never tick after tick.  A change also gives the rejected steps
+    another chance: they were rejected for the state as it was."""
+    state = tick.state
+    if state.recovery_held is None:
+        return False
+    if state.recovery_held == (tick.current(), disabled(tick)):
+        return True
+    state.recovery_held = None
+    state.rejected.clear()
+    return False
+
+
 def plan_recovery(tick: Tick, violated: list[str]) -> None:
     """A plan back to a state where every specification holds, without rejected steps."""
     state = tick.state
@@ -79,6 +98,15 @@ def plan_recovery(tick: Tick, violated: list[str]) -> None:
     flags = (RecoveryFlag.MAINTENANCE,)
     announce(tick, PlanLevel.TRANSITIONS, flags, ReplanReason.FORBIDDEN_STATE, result, millis)
     if not result.found:
+        state.recovery_held = (tick.current(), disabled(tick))
+        why = "every way out was rejected" if state.rejected else "no way out exists"
+        tick.emit(
+            EventKind.ERROR,
+            "no recovery plan",
+            why=f"{why}; nothing moves until the state changes or a person puts it right",
+            violated=violated,
+            rejected=sorted(state.rejected),
+        )
         return
     state.recovery = follow(tick, TRUE, result)
     if not state.recovery.blocks:

@@ -7,9 +7,11 @@ value the model does not know raises `SnapshotError` saying which.
 
 Not stored: `effects_watched_at`, `automatics_settled_at` and `invariants_held_at`, caches of
 what the incremental checks last looked at; `None` makes the first tick after a restart look at
-everything.  Rebased: times of the old process's clock mean nothing to the new one, so
-heartbeat windows, effect time-out windows and the background check start again at `now` (a
-device that was unavailable stays so until it answers; a timed-out effect stays timed out).
+everything.  Nor `recovery_held`: after a restart a held recovery is planned once more.
+
+Rebased: times of the old process's clock mean nothing to the new one, so heartbeat
+windows, effect time-out windows and the background check start again at `now` (a device
+that was unavailable stays so until it answers; a timed-out effect stays timed out).
 
 The stored keys are those of format 1, which outside tools may read: where a field of
 `RunnerState` was renamed since, `STORED_AS` gives its key.  Keys added since format 1 began

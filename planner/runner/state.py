@@ -116,6 +116,9 @@ class RunnerState:
     recovery: TransitionPlan | None = None  # forbidden-state recovery in progress
     relaxed: frozenset[str] = frozenset()  # the specifications the recovery plan may violate
     rejected: set[str] = field(default_factory=set)  # recovery steps an operator rejected
+    # recovery found no plan in this state with these transitions disabled: it holds until
+    # either changes (not stored: after a restart the runner plans once more, then holds)
+    recovery_held: tuple[State, frozenset[str]] | None = None
     # after errors: the plan with maintenance transitions being followed, and the operation
     # in error it was made for (seed 000 sec. 4.5)
     maintenance: TransitionPlan | None = None
