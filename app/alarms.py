@@ -95,7 +95,7 @@ def conditions(runner: Runner, state: RunnerState) -> dict[str, Condition]:
         about = runner.index.intentions[name].description
         add(f"intention:{name}", Priority.HIGH, _words("intention", name, about, what) + waiting)
     # an operation in error matters while production needs the station: once no intention is
-    # executing it waits, harmless, until the background check clears it (E6 leaves one so)
+    # executing it waits, harmless, until the background check releases it
     busy = (IntentionState.EXECUTING, IntentionState.ERROR)
     if any(current in busy for current in state.intentions.values()):
         for name in sorted(state.operations_in(OperationState.ERROR)):

@@ -264,10 +264,45 @@ def test_the_background_check_clears_an_operation_only_within_its_retries(
     runner = demo_runner
     for failures, expected in ((1, OperationState.INITIAL), (2, OperationState.ERROR)):
         state = runner.initial(0.0)
+        state.intentions["tighten_bolts"] = IntentionState.ERROR  # it needs the operation
         state.operations["get_nr_r1"] = OperationState.ERROR
         state.failures["get_nr_r1"] = failures
         result = runner.tick(state, Inputs(heartbeats=everyone(runner)), 0.0)
         assert result.state.operations["get_nr_r1"] == expected, failures
+
+
+def test_an_operation_error_does_not_outlive_the_intentions_that_needed_it(
+    demo_runner: Runner,
+) -> None:
+    runner = demo_runner
+    state = runner.initial(0.0)
+    state.operations["get_nr_r1"] = OperationState.ERROR
+    state.failures["get_nr_r1"] = 2  # out of retries: only the release clears it
+    result = runner.tick(state, Inputs(heartbeats=everyone(runner)), 0.0)
+    assert result.state.operations["get_nr_r1"] == OperationState.INITIAL
+    assert "get_nr_r1" not in result.state.failures
+    [change] = [e for e in result.events if e.kind is EventKind.OPERATION]
+    assert change.detail["why"] == "no intention needs it any more"
+
+
+def test_a_resource_that_answers_again_clears_its_failures_and_is_rechecked_at_once(
+    demo_runner: Runner,
+) -> None:
+    runner = demo_runner
+    heard = everyone(runner)
+    state = runner.initial(0.0)
+    state.intentions["tighten_bolts"] = IntentionState.ERROR
+    state.operations["get_nr_r2"] = OperationState.ERROR
+    state.failures["get_nr_r2"] = 2  # out of retries while r2 was silent
+    state.unavailable.add("r2")
+    state.next_background_check = 50.0  # the periodic check is far off
+    quiet = runner.tick(state, Inputs(heartbeats=heard - {"r2"}), 3.0)
+    assert quiet.state.operations["get_nr_r2"] == OperationState.ERROR
+    back = runner.tick(quiet.state, Inputs(heartbeats=heard), 3.1)
+    assert EventKind.AVAILABLE in [e.kind for e in back.events]
+    # the cause is gone: the failures it caused are forgotten, and the check runs at once
+    assert back.state.operations["get_nr_r2"] == OperationState.INITIAL
+    assert back.state.failures == {}
 
 
 @pytest.fixture(scope="module")

@@ -1,9 +1,15 @@
 """The background check (seed 000 sec. 4.5): what is in error and can be completed again.
 
-Every `recheck_period` seconds each operation in error that has retries left is planned
-for alone; if its goal can be reached it goes back to initial.  Each intention in error is
-planned for alone by the operation planner (without the operations still in error); if its
-goal can be reached it executes again.  Nothing is checked during forbidden-state recovery.
+It runs every `recheck_period` seconds, and at once in a tick where something that can
+clear an error happened: a resource answers again or a person re-enables an effect (both
+also forget the failures counted so far: their cause is gone), an effect's guard stops
+holding, a person did a maintenance step, set an estimate or changed a product by hand.
+
+Each operation in error that has retries left is planned for alone; if its goal can be
+reached it goes back to initial.  Each intention in error is planned for alone by the
+operation planner (without the operations still in error); if its goal can be reached it
+executes again.  An operation's error does not outlive the intentions that needed it.
+Nothing is checked during forbidden-state recovery.
 """
 
 from __future__ import annotations
@@ -15,7 +21,8 @@ from planner.runner.vocabulary import IntentionState, OperationState, PlanLevel,
 
 
 def due(tick: Tick) -> bool:
-    return tick.now >= tick.state.next_background_check
+    """Every `recheck_period`, and at once when something that can clear an error happened."""
+    return tick.errors_may_clear or tick.now >= tick.state.next_background_check
 
 
 def background_check(tick: Tick) -> None:
@@ -23,8 +30,22 @@ def background_check(tick: Tick) -> None:
     state.next_background_check = tick.now + tick.config.recheck_period
     if state.recovery is not None:
         return
+    release_operations(tick)
     recheck_operations(tick)
     recheck_intentions(tick)
+
+
+def release_operations(tick: Tick) -> None:
+    """An operation's error does not outlive the intentions that needed it: with none
+    executing or in error, it goes back to initial (its failures forgotten)."""
+    state = tick.state
+    needed = (IntentionState.EXECUTING, IntentionState.ERROR)
+    if any(current in needed for current in state.intentions.values()):
+        return
+    for name in sorted(state.operations_in(OperationState.ERROR)):
+        state.operation_goals.pop(name, None)
+        state.failures.pop(name, None)
+        tick.set_operation(name, OperationState.INITIAL, "no intention needs it any more")
 
 
 def recheck_operations(tick: Tick) -> None:

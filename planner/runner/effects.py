@@ -41,6 +41,8 @@ def monitor_effects(tick: Tick) -> None:
             if name in state.timed_out:
                 state.timed_out.discard(name)
                 tick.emit(EventKind.REENABLED, name, why="its guard no longer holds")
+                # usable again, but nothing says what stopped it is mended: failures stay
+                tick.errors_may_clear = True
             continue
         since = state.effect_enabled_since.setdefault(name, tick.now)
         timeout = tick.config.timeout_of(name, person=name in index.person_effects)

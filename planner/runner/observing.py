@@ -29,6 +29,7 @@ def take_inputs(tick: Tick, inputs: Inputs) -> None:
         if name in values and values[name] != value:
             before = values[name]
             values[name] = value
+            tick.errors_may_clear = True
             tick.emit(EventKind.OBSERVED, name, before=before, after=value)
 
 
@@ -39,6 +40,7 @@ def take_heartbeats(tick: Tick, heartbeats: frozenset[str]) -> None:
         if resource in state.unavailable:
             state.unavailable.discard(resource)
             tick.availability_changed.add(resource)
+            tick.cause_gone()
             tick.emit(EventKind.AVAILABLE, resource)
             tick.replan_transitions(ReplanReason.AVAILABILITY)
     for resource, heard in sorted(state.last_heard.items()):

@@ -107,6 +107,7 @@ def maintenance_done(tick: Tick, action: MaintenanceDone) -> Reply:
         return refuse(tick, action, name, "its guard does not hold")
     tick.set_values(chosen.apply(current))
     tick.emit(EventKind.OPERATOR, "maintenance done", user=action.user, transition=name)
+    tick.errors_may_clear = True
     plan = state.recovery if state.recovery is not None else state.maintenance
     if plan is not None:
         plan.mark_taken(name)
@@ -121,6 +122,7 @@ def reenable_effect(tick: Tick, action: ReenableEffect) -> Reply:
     state.timed_out.discard(name)
     state.effect_enabled_since.pop(name, None)
     tick.reenabled_by_people.add(name)
+    tick.cause_gone()
     tick.emit(EventKind.REENABLED, name, user=action.user)
     tick.replan_transitions(ReplanReason.REENABLED)
     return Reply.accept(action)

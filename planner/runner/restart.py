@@ -65,6 +65,7 @@ def set_estimated(tick: Tick, action: SetEstimated) -> Reply:
         reason=action.reason,
     )
     tick.replan_operations(ReplanReason.ESTIMATED)
+    tick.errors_may_clear = True
     return Reply.accept(action)
 
 

@@ -44,6 +44,15 @@ class Tick:
         self.events: list[Event] = []
         self.availability_changed: set[str] = set()  # resources that came or went
         self.reenabled_by_people: set[str] = set()  # effects a person re-enabled
+        # something that can clear an error happened (a resource answers again, an effect
+        # is usable again, a person changed the world or the estimates): check now
+        self.errors_may_clear = False
+
+    def cause_gone(self) -> None:
+        """What made operations fail is gone (a resource answers again, an effect is usable
+        again): their failures are forgotten and what is in error is checked at once."""
+        self.state.failures.clear()
+        self.errors_may_clear = True
 
     def emit(
         self, kind: EventKind, subject: str, millis: float | None = None, **detail: object
