@@ -572,3 +572,23 @@ def test_a_recovery_with_every_way_out_rejected_holds_quietly_and_says_whom_it_w
     fixed = replace(scenario, faults=(*scenario.faults, fix), until=400.0)
     events = list(play(station, fixed, planners))
     assert events[-1].kind is EventKind.DONE
+
+
+def test_an_approval_card_says_who_does_the_step(demo_runner: Runner) -> None:
+    """A recovery step of the operator's own resource (a watch card) is the operator's to
+    do, not "the station's"; a robot's step is the station's."""
+    from app.station_view import ActiveModel, StationView
+    from app.views import CardKind, task_cards
+
+    runner = demo_runner
+    station = runner.station
+    model = ActiveModel(1, 1, "", station, runner.transition_planner, runner.operation_planner)
+    state = runner.initial(0.0)
+    state.recovery = plan_of(runner, "true", ["operator.place_bolts_bp1", "r1.goto_scan"])
+    state.recovery.asked |= {0, 1}
+    view = StationView(0, 0.0, model, runner, state, (), (), simulated=True)
+    cards = [c for c in task_cards(view) if c.kind is CardKind.APPROVAL]
+    assert [(c.transition, c.why.split(". ")[1][:15]) for c in cards] == [
+        ("operator.place_bolts_bp1", "You will do thi"),
+        ("r1.goto_scan", "The station wil"),
+    ]
