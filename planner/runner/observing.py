@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from planner.expressions import Value
 from planner.runner.io import Inputs
+from planner.runner.retries import failed_attempt
 from planner.runner.tick import Tick
 from planner.runner.vocabulary import EventKind, ReplanReason
 
@@ -93,6 +94,9 @@ def report_a_different_effect(tick: Tick, name: str) -> None:
     instead_of = sorted(tick.index.alternatives.get(name, frozenset()) & expected)
     if instead_of:
         tick.emit(EventKind.UNEXPECTED, name, instead_of=instead_of, why="a different effect")
+        plan = tick.state.transition_plan
+        if plan is not None and plan.expected() & set(instead_of):
+            failed_attempt(tick, f"{name} happened instead of {', '.join(instead_of)}")
 
 
 def expected_effects(tick: Tick) -> set[str]:

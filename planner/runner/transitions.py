@@ -16,8 +16,9 @@ from planner.expressions import Expr, conjunction
 from planner.runner.following import follow, plan_reaches, startable, take
 from planner.runner.queries import announce, ask, recovery_flags, transition_query
 from planner.runner.restart import follow_reset_plan
+from planner.runner.retries import count_failure, fail_operation
 from planner.runner.tick import Tick
-from planner.runner.vocabulary import OperationState, PlanLevel, ReplanReason
+from planner.runner.vocabulary import PlanLevel, ReplanReason
 
 
 def follow_transition_plan(tick: Tick) -> None:
@@ -76,11 +77,7 @@ def which_operations_fail(tick: Tick, executing: list[str]) -> list[str]:
 
 
 def fail_operations(tick: Tick, names: list[str]) -> None:
-    state = tick.state
     for name in names:
-        state.failures[name] = state.failures.get(name, 0) + 1
-        count = state.failures[name]
+        count = count_failure(tick, name)
         why = "its goal cannot be reached" + (f" ({count} failures)" if count > 1 else "")
-        tick.set_operation(name, OperationState.ERROR, why)
-        if state.operation_plan is not None:
-            state.operation_plan.unstart(name)
+        fail_operation(tick, name, why)

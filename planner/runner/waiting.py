@@ -144,14 +144,19 @@ def _stuck_intentions(runner: Runner, state: RunnerState, others: bool) -> list[
     if others or state.maintenance is not None:
         return []
     out = []
+    failed = [
+        f"{operation}: {state.operation_causes.get(operation, 'in error')}"
+        for operation in sorted(state.operations_in(OperationState.ERROR))
+    ]
     for name in sorted(state.intentions_in(IntentionState.ERROR)):
         cause = state.intention_causes.get(name, "its goal cannot be reached")
+        because = f"; because {'; '.join(failed)}" if failed else ""
         out.append(
             Waiting(
                 Who.ENGINEER,
                 name,
-                f"nothing in the model gets {name} going again ({cause}): decide in restart "
-                "mode, or change the model",
+                f"nothing in the model gets {name} going again ({cause}{because}): mend the "
+                "cause, or decide in restart mode",
             )
         )
     return out
