@@ -20,6 +20,7 @@ from enum import StrEnum
 
 from planner.expressions import variables_of
 from planner.runner import IntentionState, OperationState, Runner, RunnerState
+from planner.runner.waiting import Who, waiting_for
 
 SHELVE_LIMIT = 8 * 60.0  # minutes: a shelved alarm comes back within a shift
 
@@ -89,9 +90,13 @@ def conditions(runner: Runner, state: RunnerState) -> dict[str, Condition]:
             + "; its transitions are disabled until it answers",
             name,
         )
+    # where nobody is asked to help, the engineer is: say why and what to do
+    engineer = {w.subject: w.what for w in waiting_for(runner, state) if w.who is Who.ENGINEER}
     for name in sorted(state.intentions_in(IntentionState.ERROR)):
         what = "no plan of operations reaches its goal"
         waiting = "; maintenance steps wait on the task cards" if state.maintenance else ""
+        if name in engineer:
+            waiting = f"; {engineer[name]}"
         about = runner.index.intentions[name].description
         add(f"intention:{name}", Priority.HIGH, _words("intention", name, about, what) + waiting)
     # an operation in error matters while production needs the station: once no intention is

@@ -456,3 +456,19 @@ def test_timeouts_halts_and_lost_resources_are_alarms_with_their_resource(
     # with no intention executing, an operation left in error waits harmlessly: no alarm
     state.intentions["tighten_bolts"] = "f"
     assert "operation:tighten_bp1" not in conditions(runner, state)
+
+
+def test_a_dead_end_alarm_names_the_cause_and_whom_it_waits_for(
+    demo: tuple[Station, Planners],
+) -> None:
+    """A camera that always misses: the intention's alarm says why (the misses), not only
+    that no plan reaches its goal, and that it is the engineer's to decide."""
+    station, planners = demo
+    path = ROOT / "bench" / "scenarios" / "endless_camera_misses.yaml"
+    scenario = replace(load_scenario(path.read_text(), str(path), station), until=40.0)
+    runner = Runner(station, planners.transition, planners.operation, scenario.config)
+    states: list[RunnerState] = []
+    list(play(station, scenario, planners, watch=states.append))
+    alarm = conditions(runner, states[-1])["intention:tighten_bolts"]
+    assert "r1_cam.locate_tool.miss happened instead of" in alarm.message
+    assert "mend the cause, or decide in restart mode" in alarm.message
