@@ -27,6 +27,7 @@ from typing import Any
 from app import station_records as records
 from app.alarms import AlarmBook, AlarmChange, AlarmError, conditions
 from app.page_updates import PageUpdates
+from app.planning_worker import PlanningWorker
 from app.scenario import Scenario
 from app.station_cycle import StationCycle
 from app.station_view import ActiveModel, StationView
@@ -90,6 +91,7 @@ class LiveStation:
         period: float = 0.1,
         clock: Callable[[], float] = time.monotonic,
         wall: Callable[[], float] = time.time,
+        planning_worker: bool = True,
     ) -> None:
         self.store = store
         self.name = name
@@ -100,6 +102,9 @@ class LiveStation:
         self.started_at = clock()
         self.model = model
         self.config = config or RunnerConfig(auto_intentions=frozenset())
+        # planning beside the loop, so that no query stalls a round (app.planning_worker)
+        self.planning_worker = planning_worker
+        self.worker = self._worker(model)
         self.requests: queue.Queue[_Request] = queue.Queue()
         self.recent: deque[Event] = deque(maxlen=RECENT_EVENTS)
         self.updates: PageUpdates[StationView] = PageUpdates()
@@ -125,14 +130,19 @@ class LiveStation:
 
     # -- set-up ---------------------------------------------------------------------------------
 
-    @staticmethod
-    def _runner(model: ActiveModel, config: RunnerConfig) -> Runner:
+    def _worker(self, model: ActiveModel) -> PlanningWorker | None:
+        if not self.planning_worker:
+            return None
+        return PlanningWorker(model.text, f"model version {model.number}", model.cache)
+
+    def _runner(self, model: ActiveModel, config: RunnerConfig) -> Runner:
         return Runner(
             model.station,
             model.transition_planner,
             model.operation_planner,
             config,
             time.perf_counter,
+            planning=self.worker,
         )
 
     def _world(
@@ -164,6 +174,8 @@ class LiveStation:
         self.stopping.set()
         if self.thread is not None:
             self.thread.join(timeout=10)
+        if self.worker is not None:
+            self.worker.close()
 
     def _loop(self) -> None:
         next_tick = self.clock()
@@ -357,6 +369,9 @@ class LiveStation:
             raise StationError(f"{why}; activate when it is idle or in restart mode")
         old = self.model
         self.model = model
+        if self.worker is not None:
+            self.worker.close()
+        self.worker = self._worker(model)
         runner = self._runner(model, self.config)
         state = carry_over(self.state, runner, now)
         variables = model.station.model.variable_index

@@ -28,6 +28,7 @@ class ActiveModel:
     station: Station
     transition_planner: TransitionPlanner
     operation_planner: OperationPlanner
+    cache: Path | None = None  # where its supervisor is saved (a planning worker loads it)
 
 
 @dataclass(frozen=True)
@@ -52,6 +53,7 @@ def build_model(version: ModelVersion, cache: Path | None) -> ActiveModel:
     planner = supervisor_cache.planner(station.model, version.text, "bdd", cache)
     planner.prepare()  # here, beside the loop, rather than in its first tick's plan
     supervisor_cache.remember_order(planner, version.text, cache)
+    operations = OperationPlanner(station)
     return ActiveModel(
-        version.id, version.number, version.text, station, planner, OperationPlanner(station)
+        version.id, version.number, version.text, station, planner, operations, cache
     )

@@ -14,6 +14,8 @@ class PlanStatus(Enum):
     FOUND = "found"
     UNREACHABLE = "unreachable"  # no plan of at most `max_steps` steps
     BAD_START = "bad_start"  # the start state is bad (or forbidden for this query)
+    # the runner's query ran past its time budget: no plan within it (treated as unreachable)
+    OVER_BUDGET = "over_budget"
 
 
 @dataclass(frozen=True)

@@ -319,6 +319,8 @@ def test_start_an_intention_confirm_the_operators_card_and_cancel(
     assert ("intention", "assemble_engine") in events
     started = next(e for e in response.json()["events"] if e["kind"] == "intention")
     assert started["detail"]["after"] == "e"
+    # the plan is made beside the loop (a planning worker): it comes a few rounds later
+    station.wait(lambda: "e" in station_state(client, auth)["operations"].values(), 30)
     state = station_state(client, auth)
     assert state["intentions"]["assemble_engine"] == "e"
     executing = [name for name, st in state["operations"].items() if st == "e"]

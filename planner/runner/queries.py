@@ -7,11 +7,12 @@ event labelled as in seed 000 Table 1 ("TP w/RTO w/MT").
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
+from collections.abc import Iterable
 from typing import Protocol
 
 from planner.expressions import Assign, Expr, conjunction, negation
 from planner.planning import PlanQuery, PlanResult, PlanStatus
+from planner.runner.answers import Pending
 from planner.runner.tick import Tick
 from planner.runner.vocabulary import EventKind, PlanLevel, RecoveryFlag, ReplanReason, plan_label
 from planner.station import effect_as_goal
@@ -37,24 +38,15 @@ def ask(
     """Ask the planner of `level`; the answer and its time in milliseconds (None without a
     stopwatch).  `purpose` names the question for observers ("which operations fail")."""
     runner = tick.runner
-    plan: Callable[[PlanQuery], PlanResult] = (
-        runner.operation_planner.plan
-        if level is PlanLevel.OPERATIONS
-        else runner.transition_planner.plan
-    )
     observer = runner.observer
     if observer is not None:
         observer.asked(tick.now, level, purpose)
-    watch = runner.stopwatch
-    if watch is None:
-        result, millis = plan(query), None
-    else:
-        started = watch()
-        result = plan(query)
-        millis = (watch() - started) * 1000
+    answer = runner.planning.answer(level, query)
+    if answer is None:
+        raise Pending(purpose)
     if observer is not None:
-        observer.answered(result, millis)
-    return result, millis
+        observer.answered(answer.result, answer.millis)
+    return answer.result, answer.millis
 
 
 def announce(

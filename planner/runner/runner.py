@@ -26,6 +26,7 @@ from planner.runner import (
     transitions,
 )
 from planner.runner.actions import Reply
+from planner.runner.answers import InProcess, Pending, Planning
 from planner.runner.io import Inputs, RunnerConfig, TickResult
 from planner.runner.queries import QueryObserver
 from planner.runner.state import RunnerState
@@ -47,16 +48,31 @@ def run_tick(tick: Tick, inputs: Inputs) -> list[Reply]:
     replies = [people.act(tick, action) for action in inputs.actions]
     automatic.settle(tick)  # 2. automatic transitions to a fixpoint
     if forbidden.in_forbidden_state(tick):
-        forbidden.recover(tick)  # 3. forbidden-state recovery, nothing else
+        attempt(tick, forbidden.recover)  # 3. forbidden-state recovery, nothing else
     else:
         intentions.start_and_finish(tick)  # 4.
-        operations.follow_operation_plan(tick)  # 5. the operation planner
-        transitions.follow_transition_plan(tick)  # 6. the transition planner
+        attempt(tick, operations.follow_operation_plan)  # 5. the operation planner
+        attempt(tick, transitions.follow_transition_plan)  # 6. the transition planner
         maintenance.follow_maintenance_plan(tick)  # after errors: the operator's steps
     effects.monitor_effects(tick)  # 7. effect time-outs
     if background.due(tick):
-        background.background_check(tick)  # errors that can be completed again
+        attempt(tick, background.background_check)  # errors that can be completed again
     return replies
+
+
+def attempt(tick: Tick, phase: Callable[[Tick], None]) -> None:
+    """Run a phase that may plan.  With answers that come later, a phase whose query is not
+    answered yet is undone (state and events) and tried again next tick (`answers`)."""
+    if not tick.runner.planning.asynchronous:
+        phase(tick)
+        return
+    saved, mark = tick.state.copy(), len(tick.events)
+    try:
+        phase(tick)
+    except Pending as waiting:
+        tick.state = saved
+        del tick.events[mark:]
+        tick.planning.add(str(waiting))
 
 
 class Runner:
@@ -70,6 +86,7 @@ class Runner:
         config: RunnerConfig | None = None,
         stopwatch: Stopwatch | None = None,
         observer: QueryObserver | None = None,
+        planning: Planning | None = None,
     ) -> None:
         self.station = station
         self.model = station.model
@@ -80,6 +97,9 @@ class Runner:
         self.index = StationIndex(station, self.semantics)
         self.stopwatch = stopwatch
         self.observer = observer
+        self.planning: Planning = planning or InProcess(
+            transition_planner, operation_planner, stopwatch
+        )
         self._bad: dict[State, bool] = {}
 
     def initial(self, now: float = 0.0, values: Mapping[str, Value] | None = None) -> RunnerState:

@@ -47,6 +47,7 @@ class Tick:
         # something that can clear an error happened (a resource answers again, an effect
         # is usable again, a person changed the world or the estimates): check now
         self.errors_may_clear = False
+        self.planning: set[str] = set()  # purposes of queries not answered yet (undone)
 
     def cause_gone(self) -> None:
         """What made operations fail is gone (a resource answers again, an effect is usable
