@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import logging
 import multiprocessing
+import os
 import queue
 import time
 from collections import OrderedDict
@@ -48,8 +49,14 @@ def serve(text: str, file: str, cache: Path | None, delay: float, jobs: Any, rep
         PlanLevel.OPERATIONS: OperationPlanner(station).plan,
     }
     replies.put(("ready", None, None))
+    parent = os.getppid()
     while True:
-        job = jobs.get()
+        try:
+            job = jobs.get(timeout=1.0)
+        except queue.Empty:
+            if os.getppid() != parent:
+                return  # the station is gone (killed, even with -9): so is its worker
+            continue
         if job is None:
             return
         number, level, query = job

@@ -3,6 +3,10 @@ on meanwhile, a query past its budget answered as such."""
 
 from __future__ import annotations
 
+import os
+import signal
+import subprocess
+import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -113,3 +117,37 @@ def test_a_query_past_its_budget_is_answered_as_such(
         now = round(now + 0.05, 6)
     assert plans and plans[0].detail["status"] == "over_budget"
     assert impatient_worker.replaced == 1
+
+
+def test_the_worker_ends_when_its_station_is_killed(tmp_path: Path) -> None:
+    """After `kill -9` of the station process no planning process is left behind."""
+    script = tmp_path / "station.py"
+    script.write_text(
+        "import os, signal, sys, time\n"
+        "from app.planning_worker import PlanningWorker\n"
+        "if __name__ == '__main__':\n"
+        f"    w = PlanningWorker(open({str(MINI)!r}).read(), 'mini', None)\n"
+        "    while not w.ready:\n"
+        "        w.collect(); time.sleep(0.05)\n"
+        "    print(w.process.pid, flush=True)\n"
+        "    os.kill(os.getpid(), signal.SIGKILL)\n"
+    )
+    root = Path(__file__).resolve().parent.parent
+    out = tmp_path / "pid"
+    with out.open("w") as written:  # a file, not a pipe the worker would keep open
+        run = subprocess.run([sys.executable, str(script)], cwd=root, stdout=written, timeout=120)
+    assert run.returncode == -signal.SIGKILL
+    pid = int(out.read_text().split()[0])
+    deadline = time.monotonic() + 15
+    while _alive(pid) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not _alive(pid)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    with open(f"/proc/{pid}/stat") as stat:  # a zombie has ended; its parent did not reap it
+        return stat.read().split()[2] != "Z"
