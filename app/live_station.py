@@ -92,6 +92,7 @@ class LiveStation:
         clock: Callable[[], float] = time.monotonic,
         wall: Callable[[], float] = time.time,
         planning_worker: bool = True,
+        planning_delay: float = 0.0,
     ) -> None:
         self.store = store
         self.name = name
@@ -104,6 +105,7 @@ class LiveStation:
         self.config = config or RunnerConfig(auto_intentions=frozenset())
         # planning beside the loop, so that no query stalls a round (app.planning_worker)
         self.planning_worker = planning_worker
+        self.planning_delay = planning_delay  # tests: every query made slow on purpose
         self.worker = self._worker(model)
         self.requests: queue.Queue[_Request] = queue.Queue()
         self.recent: deque[Event] = deque(maxlen=RECENT_EVENTS)
@@ -133,7 +135,8 @@ class LiveStation:
     def _worker(self, model: ActiveModel) -> PlanningWorker | None:
         if not self.planning_worker:
             return None
-        return PlanningWorker(model.text, f"model version {model.number}", model.cache)
+        file = f"model version {model.number}"
+        return PlanningWorker(model.text, file, model.cache, delay=self.planning_delay)
 
     def _runner(self, model: ActiveModel, config: RunnerConfig) -> Runner:
         return Runner(

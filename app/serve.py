@@ -49,6 +49,7 @@ def build(
     speed: float = 1.0,
     secure_cookies: bool = False,
     seed_users: bool = True,
+    planning_delay: float = 0.0,
 ) -> Built:
     """Open (and migrate) the store, load the active model, restore the station, make the app."""
     store = open_store(url)
@@ -61,7 +62,13 @@ def build(
         key = secret_key(session)
     model = build_model(version, cache)
     live = LiveStation(
-        store, name, model, simulated=simulated, period=period, clock=_scaled_clock(speed)
+        store,
+        name,
+        model,
+        simulated=simulated,
+        period=period,
+        clock=_scaled_clock(speed),
+        planning_delay=planning_delay,
     )
     # the task page shows the cards, and restart mode when there are none
     live.watch_area("tasks", lambda view: (task_cards(view), view.state.restart_mode))

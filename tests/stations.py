@@ -120,10 +120,20 @@ class RunningStation:
         self.built.server.store.close()
 
 
-def start_station(directory: Path, period: float = 0.05, speed: float = 4.0) -> RunningStation:
-    """A demo station whose simulated devices run `speed` times faster than real time."""
+def start_station(
+    directory: Path, period: float = 0.05, speed: float = 4.0, planning_delay: float = 0.0
+) -> RunningStation:
+    """A demo station whose simulated devices run `speed` times faster than real time (and,
+    with `planning_delay`, whose every planning query takes that many seconds more)."""
     db = directory / "station.db"
-    built = build(MODEL, sqlite_url(db), cache=default_cache(), period=period, speed=speed)
+    built = build(
+        MODEL,
+        sqlite_url(db),
+        cache=default_cache(),
+        period=period,
+        speed=speed,
+        planning_delay=planning_delay,
+    )
     station = RunningStation(built, db)
     station.live.start()
     return station
