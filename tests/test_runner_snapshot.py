@@ -33,7 +33,13 @@ MODEL = ROOT / "models" / "demo_station.yaml"
 SCENARIOS = sorted((ROOT / "models" / "scenarios").glob("*.yaml"))
 E6 = "e6_r2_disconnects_above_engine"
 # not stored: None after loading
-CACHES = {"effects_watched_at", "automatics_settled_at", "invariants_held_at", "recovery_held"}
+CACHES = {
+    "effects_watched_at",
+    "automatics_settled_at",
+    "invariants_held_at",
+    "recovery_held",
+    "rechecked",
+}
 
 
 @dataclass

@@ -10,7 +10,8 @@ import pytest
 
 from app.scenario import Planners, load_scenario, play
 from planner.operation_planner import OperationPlanner
-from planner.runner import Event, EventKind
+from planner.planning import PlanResult
+from planner.runner import Event, EventKind, PlanLevel
 from planner.station import Station, load_station
 from planner.transition_planner import TransitionPlanner
 
@@ -57,3 +58,29 @@ def test_a_device_that_always_fails_ends_in_a_quiet_stop_naming_the_cause(
     assert missed in waiting["what"]  # the cause, not only "no operation plan"
     plans = [e for e in events if e.kind is EventKind.PLAN]
     assert len(plans) <= 15  # was 53 and 26: replanned for as long as the run lasted
+
+
+def test_a_stop_asks_the_planners_nothing_while_nothing_changes(
+    demo: tuple[Station, Planners],
+) -> None:
+    """The background check looks again only when what its queries read has changed: a
+    station that has stopped does not ask the same question every second."""
+    station, planners = demo
+    path = BENCH / "endless_camera_misses.yaml"
+    scenario = load_scenario(path.read_text(), str(path), station)
+    asked: list[tuple[float, str]] = []
+
+    class Count:
+        def asked(self, now: float, level: PlanLevel, purpose: str) -> None:
+            asked.append((now, purpose))
+
+        def answered(self, result: PlanResult, millis: float | None) -> None:
+            pass
+
+        def announced(self) -> None:
+            pass
+
+    events = list(play(station, scenario, planners, observer=Count()))
+    assert events[-1].kind is EventKind.STOPPED
+    last_plan = max(e.time for e in events if e.kind is EventKind.PLAN)
+    assert [a for a in asked if a[0] > last_plan + 2] == []

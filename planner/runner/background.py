@@ -15,7 +15,7 @@ Nothing is checked during forbidden-state recovery.
 from __future__ import annotations
 
 from planner.runner.operations import predicted
-from planner.runner.queries import ask, transition_query
+from planner.runner.queries import ask, disabled, transition_query
 from planner.runner.tick import Tick
 from planner.runner.vocabulary import IntentionState, OperationState, PlanLevel, ReplanReason
 
@@ -31,8 +31,25 @@ def background_check(tick: Tick) -> None:
     if state.recovery is not None:
         return
     release_operations(tick)
+    looked_at = what_the_check_reads(tick)
+    if looked_at == state.rechecked:
+        return  # the same questions would get the same answers: a stop stays quiet
     recheck_operations(tick)
     recheck_intentions(tick)
+    state.rechecked = what_the_check_reads(tick)
+
+
+def what_the_check_reads(tick: Tick) -> tuple[object, ...]:
+    """Everything the check's queries depend on: the values, what is in error with its
+    failures, and what planning may not use."""
+    state = tick.state
+    return (
+        tick.current(),
+        tuple(sorted(state.operations_in(OperationState.ERROR))),
+        tuple(sorted(state.intentions_in(IntentionState.ERROR))),
+        tuple(sorted(state.failures.items())),
+        disabled(tick),
+    )
 
 
 def release_operations(tick: Tick) -> None:

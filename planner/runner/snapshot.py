@@ -7,7 +7,8 @@ value the model does not know raises `SnapshotError` saying which.
 
 Not stored: `effects_watched_at`, `automatics_settled_at` and `invariants_held_at`, caches of
 what the incremental checks last looked at; `None` makes the first tick after a restart look at
-everything.  Nor `recovery_held`: after a restart a held recovery is planned once more.
+everything.  Nor `recovery_held` and `rechecked`: after a restart a held recovery is planned
+once more and what is in error is checked once more.
 
 Rebased: times of the old process's clock mean nothing to the new one, so heartbeat
 windows, effect time-out windows and the background check start again at `now` (a device

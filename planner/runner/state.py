@@ -119,6 +119,9 @@ class RunnerState:
     # recovery found no plan in this state with these transitions disabled: it holds until
     # either changes (not stored: after a restart the runner plans once more, then holds)
     recovery_held: tuple[State, frozenset[str]] | None = None
+    # what the background check last looked at: checked again only once it changed (not
+    # stored: after a restart everything is checked once more)
+    rechecked: tuple[object, ...] | None = None
     # after errors: the plan with maintenance transitions being followed, and the operation
     # in error it was made for (seed 000 sec. 4.5)
     maintenance: TransitionPlan | None = None
