@@ -124,7 +124,7 @@ def _approvals(view: StationView) -> list[TaskCard]:
     for k in sorted(plan.asked - plan.approved):
         name = plan.blocks[k].transition
         kind = view.model.station.model.transition(name).kind
-        yours = kind is TransitionKind.MAINTENANCE or _persons_step(view, name)
+        yours = kind is TransitionKind.MAINTENANCE or name in view.runner.index.person_transitions
         who = "You will" if yours else "The station will"
         cards.append(
             TaskCard(
@@ -154,9 +154,3 @@ def _failure(view: StationView, operation: str) -> str:
     reason = view.state.operation_causes.get(operation, "")
     text = f"Failed: {sentence(description)[:1].lower()}{sentence(description)[1:]}"
     return f"{text} ({reason})" if reason else text
-
-
-def _persons_step(view: StationView, transition: str) -> bool:
-    """Is `transition` a step of a person's resource (a card shown to the operator)?"""
-    owner = view.runner.index.owner.get(transition, "")
-    return any(r.name == owner and r.person for r in view.model.station.resources)

@@ -100,17 +100,10 @@ def report_a_different_effect(tick: Tick, name: str) -> None:
 
 
 def expected_effects(tick: Tick) -> set[str]:
-    state = tick.state
-    expected: set[str] = set()
-    for plan in (state.transition_plan, state.recovery, state.maintenance):
-        if plan is not None:
-            expected |= plan.expected()
-    return expected
+    return {name for plan in tick.state.plans_followed() for name in plan.expected()}
 
 
 def happened(tick: Tick, name: str) -> None:
     """An effect or automatic step happened: the plans waiting for it move on."""
-    state = tick.state
-    for plan in (state.transition_plan, state.recovery, state.maintenance):
-        if plan is not None:
-            plan.happened(name)
+    for plan in tick.state.plans_followed():
+        plan.happened(name)

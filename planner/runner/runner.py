@@ -69,10 +69,9 @@ def attempt(tick: Tick, phase: Callable[[Tick], None]) -> None:
     saved, mark = tick.state.copy(), len(tick.events)
     try:
         phase(tick)
-    except Pending as waiting:
+    except Pending:
         tick.state = saved
         del tick.events[mark:]
-        tick.planning.add(str(waiting))
 
 
 class Runner:

@@ -181,6 +181,11 @@ class RunnerState:
     def operations_in(self, state: OperationState) -> list[str]:
         return [name for name, current in self.operations.items() if current == state]
 
+    def plans_followed(self) -> list[TransitionPlan]:
+        """The transition plans being followed: production's, recovery's, maintenance's."""
+        plans = (self.transition_plan, self.recovery, self.maintenance)
+        return [plan for plan in plans if plan is not None]
+
     def executing(self) -> list[str]:
         """The executing operations with planning goals, in the order they started."""
         return [

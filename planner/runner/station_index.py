@@ -33,25 +33,7 @@ class StationIndex:
         self.effects = [c for c in semantics.transitions if c.kind is TransitionKind.EFFECT]
         self.effect_position = {e.name: k for k, e in enumerate(self.effects)}
         self._index_readers(model, semantics)
-        # the other effects of the same ability: what may happen instead of an expected one
-        self.alternatives: dict[str, frozenset[str]] = {}
-        for ability in station.abilities:
-            own = {n for n in ability.transitions if n in self.effect_position}
-            for name in own:
-                self.alternatives[name] = self.alternatives.get(name, frozenset()) | (own - {name})
-        self.owner: dict[str, str] = {}  # transition -> the resource it belongs to
-        for resource in station.resources:
-            for name in resource.transitions:
-                self.owner[name] = resource.name
-        self.resource_transitions = {r.name: frozenset(r.transitions) for r in station.resources}
-        # the effects people bring about: never timed out as a device's would be
-        self.person_effects = frozenset(
-            name
-            for resource in station.resources
-            if resource.person
-            for name in resource.transitions
-            if name in self.effect_position
-        )
+        self._index_resources(station)
         self.intentions: dict[str, Intention] = {i.name: i for i in station.intentions}
         self.operations: dict[str, Operation] = {o.name: o for o in station.operations}
         self.intention_precondition = {
@@ -81,6 +63,31 @@ class StationIndex:
             o.name: all(a.target in self.measured for a in o.effects) for o in station.operations
         }
         self._compiled: dict[Expr, Predicate] = {}
+
+    def _index_resources(self, station: Station) -> None:
+        """Who owns which transition, and the alternatives among an ability's effects."""
+        # the other effects of the same ability: what may happen instead of an expected one
+        self.alternatives: dict[str, frozenset[str]] = {}
+        for ability in station.abilities:
+            own = {n for n in ability.transitions if n in self.effect_position}
+            for name in own:
+                self.alternatives[name] = self.alternatives.get(name, frozenset()) | (own - {name})
+        self.owner: dict[str, str] = {}  # transition -> the resource it belongs to
+        for resource in station.resources:
+            for name in resource.transitions:
+                self.owner[name] = resource.name
+        self.resource_transitions = {r.name: frozenset(r.transitions) for r in station.resources}
+        # the transitions of people's resources (their steps are people's to do), and the
+        # effects among them: never timed out as a device's would be
+        self.person_transitions = frozenset(
+            name
+            for resource in station.resources
+            if resource.person
+            for name in resource.transitions
+        )
+        self.person_effects = frozenset(
+            name for name in self.person_transitions if name in self.effect_position
+        )
 
     def _index_readers(self, model: Model, semantics: Semantics) -> None:
         """For each variable (by position): the invariants, automatic transitions and effects

@@ -8,7 +8,8 @@ operation changes state, so that every change is an event, follows its life cycl
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, TypeVar
 
 from planner.expressions import Value
 from planner.runner.io import Event
@@ -26,6 +27,9 @@ from planner.semantics import State
 if TYPE_CHECKING:
     from planner.runner.runner import Runner
     from planner.runner.station_index import StationIndex
+
+
+_State = TypeVar("_State", IntentionState, OperationState)
 
 
 class LifeCycleError(AssertionError):
@@ -47,7 +51,6 @@ class Tick:
         # something that can clear an error happened (a resource answers again, an effect
         # is usable again, a person changed the world or the estimates): check now
         self.errors_may_clear = False
-        self.planning: set[str] = set()  # purposes of queries not answered yet (undone)
 
     def cause_gone(self) -> None:
         """What made operations fail is gone (a resource answers again, an effect is usable
@@ -79,29 +82,36 @@ class Tick:
 
     def set_intention(self, name: str, new: IntentionState, why: str) -> None:
         state = self.state
-        before = state.intentions[name]
-        if new not in INTENTION_LIFE_CYCLE[before]:
-            raise LifeCycleError(f"intention {name}: {before.name} may not become {new.name}")
-        state.intentions[name] = new
-        _keep_cause(state.intention_causes, name, new is IntentionState.ERROR, why)
-        self.emit(EventKind.INTENTION, name, before=before, after=new, why=why)
+        intentions, causes = state.intentions, state.intention_causes
+        self._change(EventKind.INTENTION, INTENTION_LIFE_CYCLE, intentions, causes, name, new, why)
         self.replan_operations(ReplanReason.INTENTIONS)
 
     def set_operation(self, name: str, new: OperationState, why: str) -> None:
         state = self.state
-        before = state.operations[name]
-        if new not in OPERATION_LIFE_CYCLE[before]:
-            raise LifeCycleError(f"operation {name}: {before.name} may not become {new.name}")
-        state.operations[name] = new
-        _keep_cause(state.operation_causes, name, new is OperationState.ERROR, why)
-        self.emit(EventKind.OPERATION, name, before=before, after=new, why=why)
+        operations, causes = state.operations, state.operation_causes
+        self._change(EventKind.OPERATION, OPERATION_LIFE_CYCLE, operations, causes, name, new, why)
+
+    def _change(
+        self,
+        kind: EventKind,
+        life_cycle: Mapping[_State, frozenset[_State]],
+        states: dict[str, _State],
+        causes: dict[str, str],
+        name: str,
+        new: _State,
+        why: str,
+    ) -> None:
+        """`name` goes to `new` if its life cycle allows it; the first cause of an error is
+        kept until it leaves the error."""
+        before = states[name]
+        if new not in life_cycle[before]:
+            raise LifeCycleError(f"{kind.value} {name}: {before.name} may not become {new.name}")
+        states[name] = new
+        if new in (IntentionState.ERROR, OperationState.ERROR):
+            causes.setdefault(name, why)
+        else:
+            causes.pop(name, None)
+        self.emit(kind, name, before=before, after=new, why=why)
 
     def value(self, name: str) -> Value:
         return self.state.values[name]
-
-
-def _keep_cause(causes: dict[str, str], name: str, error: bool, why: str) -> None:
-    if error:
-        causes.setdefault(name, why)
-    else:
-        causes.pop(name, None)

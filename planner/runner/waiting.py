@@ -122,9 +122,7 @@ def _devices(runner: Runner, state: RunnerState) -> list[Waiting]:
     out = [
         Waiting(Who.DEVICE, name, f"{name} to answer again") for name in sorted(state.unavailable)
     ]
-    for plan in (state.transition_plan, state.recovery, state.maintenance):
-        if plan is None:
-            continue
+    for plan in state.plans_followed():
         for effect in sorted(plan.expected()):
             if index.kind_of(effect) is not TransitionKind.EFFECT:
                 continue
