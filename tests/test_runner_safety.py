@@ -43,6 +43,7 @@ from planner.transition_planner import TransitionPlanner
 ROOT = Path(__file__).resolve().parent.parent
 MODEL = ROOT / "models" / "demo_station.yaml"
 SCENARIOS = sorted((ROOT / "models" / "scenarios").glob("*.yaml"))
+MINI = ROOT / "tests" / "models" / "mini_station.yaml"
 
 # A press that must never come down on a hand or on nothing.  A hand may enter only while
 # the press is up (a light curtain), so lowering it is safe exactly when no hand is in.
@@ -592,3 +593,35 @@ def test_an_approval_card_says_who_does_the_step(demo_runner: Runner) -> None:
         ("operator.place_bolts_bp1", "You will do thi"),
         ("r1.goto_scan", "The station wil"),
     ]
+
+
+def test_a_new_model_version_keeps_what_both_versions_know(demo_runner: Runner) -> None:
+    """carry_over: values still in their domain, restart mode with its reason, intentions
+    that finished or failed (with why); plans, operations and failures start afresh."""
+    from planner.runner.carry_over import carry_over
+
+    old = demo_runner.initial(0.0, {"r1.pos": "scan", "r1.ref": "scan"})
+    old.restart_mode, old.restart_reason, old.restart_user = True, "r2 pushed by hand", "eve"
+    old.intentions["tighten_bolts"] = IntentionState.ERROR
+    old.intention_causes["tighten_bolts"] = "no operation plan reaches its goal"
+    old.operations["get_nr_r1"] = OperationState.ERROR
+    old.failures["get_nr_r1"] = 2
+    old.transition_plan = plan_of(demo_runner, "true", ["r1.goto_scan"])
+    same = carry_over(old, demo_runner, 5.0)
+    assert (same.restart_mode, same.restart_reason, same.restart_user) == (
+        True,
+        "r2 pushed by hand",
+        "eve",
+    )
+    assert same.intentions["tighten_bolts"] == IntentionState.ERROR
+    assert same.intention_causes == old.intention_causes
+    assert same.values["r1.pos"] == "scan"
+    assert same.operations["get_nr_r1"] == OperationState.INITIAL
+    assert same.failures == {} and same.transition_plan is None
+
+    mini = load_station(MINI.read_text(), str(MINI))
+    other = Runner(mini, TransitionPlanner(mini.model), OperationPlanner(mini))
+    moved = carry_over(old, other, 5.0)
+    assert moved.values["r1.pos"] == "home"  # 'scan' is not a position of this version
+    assert set(moved.intentions) == {"assemble"} and moved.intention_causes == {}
+    assert moved.restart_mode
