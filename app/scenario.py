@@ -40,6 +40,7 @@ from planner.runner import (
     SetEstimated,
     StartIntention,
 )
+from planner.runner.answers import Delayed
 from planner.runner.queries import QueryObserver
 from planner.runner.waiting import waiting_for
 from planner.station import Station
@@ -56,11 +57,13 @@ _KEYS = (
     "operator",
     "until",
     "expect",
+    "planning",
 )
 _CONFIG_KEYS = (
     "effect_timeout",
     "effect_timeouts",
     "heartbeat_timeout",
+    "reminder",
     "retries",
     "recheck_period",
     "max_steps",
@@ -101,6 +104,10 @@ class Scenario:
     maintenance: bool = True
     until: float = 900.0
     expect: Mapping[str, Any] = field(default_factory=dict)
+    # every planning query takes this many simulated seconds (0: answered at once), and one
+    # past the budget is answered over budget, as the live station's worker does
+    planning_delay: float = 0.0
+    planning_budget: float = 10.0
 
 
 Path = tuple[str | int, ...]
@@ -211,7 +218,8 @@ def _read(data: Any, file: str, station: Station) -> Scenario:
             raise _Problem(("config", "effect_timeouts", effect), f"unknown transition '{effect}'")
         if seconds is not None:
             _number(seconds, ("config", "effect_timeouts", effect))
-    for key in ("effect_timeout", "heartbeat_timeout", "recheck_period", "retries", "max_steps"):
+    numbers = ("effect_timeout", "heartbeat_timeout", "reminder", "recheck_period")
+    for key in (*numbers, "retries", "max_steps"):
         if key in raw_config:
             _number(raw_config[key], ("config", key), integer=key in ("retries", "max_steps"))
     config = RunnerConfig(
@@ -264,6 +272,8 @@ def _read(data: Any, file: str, station: Station) -> Scenario:
         _read_action(("actions", k), entry, scope)
         for k, entry in enumerate(_sequence(data.get("actions"), ("actions",), "actions"))
     )
+    planning = _mapping(data.get("planning"), ("planning",), "planning")
+    _known(("planning",), "planning", planning, ("delay", "budget"))
     operator = _mapping(data.get("operator"), ("operator",), "operator")
     _known(("operator",), "operator", operator, ("delay", "approve", "maintenance"))
     return Scenario(
@@ -281,6 +291,8 @@ def _read(data: Any, file: str, station: Station) -> Scenario:
         maintenance=bool(operator.get("maintenance", True)),
         until=_number(data.get("until", 900.0), ("until",)),
         expect=_mapping(data.get("expect"), ("expect",), "expect"),
+        planning_delay=_number(planning.get("delay", 0.0), ("planning", "delay")),
+        planning_budget=_number(planning.get("budget", 10.0), ("planning", "budget")),
     )
 
 
@@ -352,6 +364,9 @@ def play(
         station, delays=scenario.delays, default_delay=scenario.default_delay, start=scenario.start
     )
     now = 0.0
+    if scenario.planning_delay > 0:
+        budget = scenario.planning_budget
+        runner.planning = Delayed(runner.planning, scenario.planning_delay, budget, lambda: now)
     cycle = StationCycle(runner, world, runner.initial(now, scenario.start), list(scenario.faults))
     scheduled = list(scenario.actions)
     answers: list[tuple[float, Action]] = []  # people's actions, when due

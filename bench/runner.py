@@ -7,7 +7,7 @@ runner makes per scenario, and tick time versus size.
 Part 1 plays the nine Table 1 scenarios on the demo station `--runs` times and times each
 planning action the paper lists (matched in order among our non-routine planning actions
 after the first fault), against the paper's nuXmv times and the issue's 20 ms target.
-It then plays E1-E9 and the scenarios of bench/scenarios (operators who reject recovery
+It then plays E1-E9 and the scenarios of models/scenarios/faults (operators who reject recovery
 steps, double faults, faults that never clear) `--recovery-runs` times each, every play an
 `sp run --speed 0 --json` in a child process killed after `--play-limit` wall seconds, and
 times every planning query the runner makes (its plan events, and the queries it makes
@@ -185,7 +185,7 @@ def taken_table(rows: list[Experiment]) -> str:
 
 # ---- part 1, continued: every planning query of a play, each play in a child process -------
 
-BENCH_SCENARIOS = ROOT / "bench" / "scenarios"  # not models/scenarios: these need not finish
+BENCH_SCENARIOS = SCENARIOS / "faults"  # these need not finish
 QUERY_MEDIAN_TARGET_MS = 50.0  # issue 11: every recovery query of the runner, median ...
 QUERY_MAX_TARGET_MS = 500.0  # ... and max
 
@@ -377,7 +377,7 @@ def play_in_child(model: Path, path: Path, until: float, limit: float, cache: Pa
 
 
 def recovery_scenarios(only: Sequence[str] | None) -> list[Path]:
-    """E1-E9 of seed 000 Table 1, then the scenarios of bench/scenarios."""
+    """E1-E9 of seed 000 Table 1, then the scenarios of models/scenarios/faults."""
     paths = sorted(SCENARIOS.glob("e[1-9]_*.yaml")) + sorted(BENCH_SCENARIOS.glob("*.yaml"))
     return [p for p in paths if not only or any(o in p.stem for o in only)]
 
@@ -530,7 +530,7 @@ def queries_section(
 ) -> str:
     return (
         "\n## Every planning query of the runner, per scenario (demo station)\n\n"
-        "Each scenario (E1-E9 of models/scenarios, then bench/scenarios: operators who reject "
+        "Each scenario (E1-E9 of models/scenarios, then models/scenarios/faults: operators who reject "
         "recovery steps, double faults, faults that never clear) is played by "
         "`sp run models/demo_station.yaml --scenario FILE --speed 0 --json --quiet` in a child "
         f"process killed after {limit:g} s wall, {runs} play{'s' * (runs != 1)} per scenario "

@@ -464,7 +464,7 @@ def test_a_dead_end_alarm_names_the_cause_and_whom_it_waits_for(
     """A camera that always misses: the intention's alarm says why (the misses), not only
     that no plan reaches its goal, and that it is the engineer's to decide."""
     station, planners = demo
-    path = ROOT / "bench" / "scenarios" / "endless_camera_misses.yaml"
+    path = ROOT / "models" / "scenarios" / "faults" / "endless_camera_misses.yaml"
     scenario = replace(load_scenario(path.read_text(), str(path), station), until=40.0)
     runner = Runner(station, planners.transition, planners.operation, scenario.config)
     states: list[RunnerState] = []

@@ -17,7 +17,7 @@ from planner.transition_planner import TransitionPlanner
 
 ROOT = Path(__file__).resolve().parent.parent
 MODEL = ROOT / "models" / "demo_station.yaml"
-BENCH = ROOT / "bench" / "scenarios"
+BENCH = ROOT / "models" / "scenarios" / "faults"
 
 
 @pytest.fixture(scope="module")

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from typing import Protocol
 
 from planner.operation_planner import OperationPlanner
-from planner.planning import PlanQuery, PlanResult
+from planner.planning import PlanQuery, PlanResult, PlanStatus
 from planner.runner.vocabulary import PlanLevel
 from planner.transition_planner import TransitionPlanner
 
@@ -65,3 +65,27 @@ class InProcess:
         started = watch()
         result = plan(query)
         return Answer(result, (watch() - started) * 1000)
+
+
+class Delayed:
+    """Answers as a planner that needs `delay` seconds per query would, on the caller's
+    `clock`: the scenario player's deterministic stand-in for a slow planning worker.  A
+    query whose delay is past `budget` is answered `over_budget` once the budget is used up,
+    as the worker does.  Answers are kept, so a phase retried in the same state gets them."""
+
+    asynchronous = True
+
+    def __init__(
+        self, planning: Planning, delay: float, budget: float, clock: Callable[[], float]
+    ) -> None:
+        self.planning, self.delay, self.budget, self.clock = planning, delay, budget, clock
+        self.asked: dict[tuple[PlanLevel, PlanQuery], float] = {}
+
+    def answer(self, level: PlanLevel, query: PlanQuery) -> Answer | None:
+        waited = self.clock() - self.asked.setdefault((level, query), self.clock())
+        if waited < min(self.delay, self.budget):
+            return None
+        if self.delay > self.budget:
+            over = PlanResult(PlanStatus.OVER_BUDGET, max_steps=query.max_steps, engine="delayed")
+            return Answer(over, self.budget * 1000)
+        return self.planning.answer(level, query)  # with the planner's own time

@@ -6,7 +6,8 @@ also forget the failures counted so far: their cause is gone), an effect's guard
 holding, a person did a maintenance step, set an estimate or changed a product by hand.
 
 Each operation in error that has retries left is planned for alone; if its goal can be
-reached it goes back to initial.  Each intention in error is planned for alone by the
+reached it goes back to initial, or, when a late effect took back the failure that put it
+in error and nothing else executes, it goes on where it was (`retries.late_effect`).  Each intention in error is planned for alone by the
 operation planner (without the operations still in error); if its goal can be reached it
 executes again.  An operation's error does not outlive the intentions that needed it.
 Nothing is checked during forbidden-state recovery.
@@ -16,6 +17,7 @@ from __future__ import annotations
 
 from planner.runner.operations import predicted
 from planner.runner.queries import ask, disabled, transition_query
+from planner.runner.retries import forget_failures
 from planner.runner.tick import Tick
 from planner.runner.vocabulary import IntentionState, OperationState, PlanLevel, ReplanReason
 
@@ -61,7 +63,7 @@ def release_operations(tick: Tick) -> None:
         return
     for name in sorted(state.operations_in(OperationState.ERROR)):
         state.operation_goals.pop(name, None)
-        state.failures.pop(name, None)
+        forget_failures(tick, name)
         tick.set_operation(name, OperationState.INITIAL, "no intention needs it any more")
 
 
@@ -74,10 +76,16 @@ def recheck_operations(tick: Tick) -> None:
         goal = state.operation_goals.get(name) or operation.planning_goal(state.values)
         query = transition_query(tick, goal, [name])
         result, _ = ask(tick, PlanLevel.TRANSITIONS, query, "background check of an operation")
-        if result.found:
+        if not result.found:
+            continue
+        if name in state.resumable and name in state.operation_goals and not state.executing():
+            why = "the effect it waited for came late: it goes on where it was"
+            tick.set_operation(name, OperationState.EXECUTING, why)
+            tick.replan_transitions(ReplanReason.GOALS)
+        else:
             state.operation_goals.pop(name, None)
             tick.set_operation(name, OperationState.INITIAL, "its goal can be reached again")
-            tick.replan_operations(ReplanReason.CLEARED)
+        tick.replan_operations(ReplanReason.CLEARED)
 
 
 def recheck_intentions(tick: Tick) -> None:

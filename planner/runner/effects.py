@@ -4,7 +4,7 @@ An effect whose guard has held longer than its time-out without happening is tim
 disabled in planning queries (the "w/ETO" of a label) and the transition plan is made
 again.  It is re-enabled when its guard stops holding or a person re-enables it.  The
 effects of a person's resource (`kind: person`: an operator confirming a card) have no
-time-out unless the configuration gives one.
+time-out unless the configuration gives one: a reminder after `reminder` seconds instead.
 """
 
 from __future__ import annotations
@@ -38,6 +38,7 @@ def monitor_effects(tick: Tick) -> None:
         enabled = effect.guard(current) and index.owner.get(name) not in state.unavailable
         if not enabled:
             state.effect_enabled_since.pop(name, None)
+            state.reminded.pop(name, None)
             if name in state.timed_out:
                 state.timed_out.discard(name)
                 tick.emit(EventKind.REENABLED, name, why="its guard no longer holds")
@@ -45,8 +46,23 @@ def monitor_effects(tick: Tick) -> None:
                 tick.errors_may_clear = True
             continue
         since = state.effect_enabled_since.setdefault(name, tick.now)
-        timeout = tick.config.timeout_of(name, person=name in index.person_effects)
+        person = name in index.person_effects
+        if person:
+            remind(tick, name, tick.now - since)
+        timeout = tick.config.timeout_of(name, person=person)
         if timeout is not None and name not in state.timed_out and tick.now - since > timeout:
             state.timed_out.add(name)
             tick.emit(EventKind.TIMEOUT, name, waited=round(tick.now - since, 3))
             tick.replan_transitions(ReplanReason.TIMEOUT)
+
+
+def remind(tick: Tick, name: str, waited: float) -> None:
+    """A person's step that has waited `reminder` seconds (and each as long again) gets a
+    reminder: no time-out, no failure counted, the plan waits."""
+    every = tick.config.reminder
+    if every is None or every <= 0:
+        return
+    due = int(waited // every)
+    if due > tick.state.reminded.get(name, 0):
+        tick.state.reminded[name] = due
+        tick.emit(EventKind.REMINDER, name, waited=round(waited, 3), what=tick.index.describe(name))

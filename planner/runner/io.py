@@ -25,6 +25,9 @@ class RunnerConfig:
     # per effect transition: its own time-out, or None for an effect never timed out (a person)
     effect_timeouts: Mapping[str, float | None] = field(default_factory=dict)
     heartbeat_timeout: float = 2.0
+    # a person's step that waits this long (and every as long again) gets a reminder, not a
+    # time-out: people take the time the work takes (None: never remind)
+    reminder: float | None = 120.0
     retries: int = 2  # failures after which an operation's goal counts as unreachable
     recheck_period: float = 1.0  # the background check of operations and intentions in error
     max_steps: int = 60

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from planner.expressions import Value
 from planner.runner.io import Inputs
-from planner.runner.retries import failed_attempt
+from planner.runner.retries import failed_attempt, late_effect
 from planner.runner.tick import Tick
 from planner.runner.vocabulary import EventKind, ReplanReason
 
@@ -72,7 +72,11 @@ def explain(tick: Tick, changed: dict[str, Value]) -> None:
                 for target in targets:
                     values[target] = after[target]
                     remaining.pop(target, None)
-                tick.emit(EventKind.EFFECT, effect.name)
+                if effect.name in tick.state.timed_out:
+                    tick.emit(EventKind.EFFECT, effect.name, late=True)
+                    late_effect(tick, effect.name)
+                else:
+                    tick.emit(EventKind.EFFECT, effect.name)
                 report_a_different_effect(tick, effect.name)
                 happened(tick, effect.name)
                 progress = True

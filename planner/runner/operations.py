@@ -16,9 +16,11 @@ from __future__ import annotations
 
 from planner.expressions import Value
 from planner.partial_order import independent_operations
+from planner.planning import PlanStatus
 from planner.runner.maintenance import plan_maintenance
 from planner.runner.queries import announce, ask
 from planner.runner.state import OperationPlan
+from planner.runner.retries import forget_failures
 from planner.runner.tick import Tick
 from planner.runner.values import assigned
 from planner.runner.vocabulary import (
@@ -57,7 +59,7 @@ def finish_operation(tick: Tick, name: str) -> None:
     state = tick.state
     state.values.update(assigned(tick.index.operations[name].actions, state.values))
     state.operation_goals.pop(name)
-    state.failures.pop(name, None)
+    forget_failures(tick, name)
     tick.set_operation(name, OperationState.INITIAL, "goal reached")
     if state.operation_plan is not None:
         state.operation_plan.finish(name)
@@ -162,6 +164,12 @@ def plan_operations(tick: Tick, active: list[str], reason: ReplanReason) -> None
         state.operation_plan = OperationPlan(result.plan, tuple(after))
         return
     state.operation_plan = None
+    if result.status is PlanStatus.OVER_BUDGET:  # asking each alone would take as long
+        for intention in intentions:
+            why = "no operation plan within the planning budget"
+            tick.set_intention(intention.name, IntentionState.ERROR, why)
+        state.replan_operations = None
+        return
     # which intentions fail: plan for each alone (seed 000 sec. 4.2)
     for intention in intentions:
         alone = planner.query(

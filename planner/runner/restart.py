@@ -20,6 +20,7 @@ from planner.model import VariableKind
 from planner.runner.actions import Action, EnterRestart, Reply, ResetOperation, SetEstimated
 from planner.runner.following import follow, plan_reaches, startable, take
 from planner.runner.queries import announce, ask, recovery_flags, transition_query, unchanged
+from planner.runner.retries import forget_failures
 from planner.runner.tick import Tick
 from planner.runner.vocabulary import EventKind, OperationState, PlanLevel, ReplanReason
 
@@ -93,7 +94,7 @@ def reset_operation(tick: Tick, action: ResetOperation) -> Reply:
     if why:
         tick.emit(EventKind.REFUSED, name, user=who, why=why)
         return Reply.refuse(action, name, why)
-    state.failures.pop(name, None)
+    forget_failures(tick, name)
     state.operation_goals.pop(name, None)
     if state.operation_plan is not None:
         state.operation_plan.unstart(name)

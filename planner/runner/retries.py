@@ -6,6 +6,11 @@ finding, a nutrunner that ends NOK instead of at torque).  The first kind puts i
 once; attempts that go wrong are retried until `retries` of them have failed, then it goes
 to error with the cause, so that a blinded camera is not tried for ever.  The count is
 forgotten when the operation reaches its goal or the cause is gone (`Tick.cause_gone`).
+
+A failure counted while device effects were timed out is blamed on them: a device that is
+merely slow makes its effect come after the time-out, and then those failures are taken back
+and the operations they put in error go on where they were (`late_effect`), instead of
+starting over, timing out again and using up their retries.
 """
 
 from __future__ import annotations
@@ -14,10 +19,43 @@ from planner.runner.tick import Tick
 from planner.runner.vocabulary import OperationState, ReplanReason
 
 
-def count_failure(tick: Tick, name: str) -> int:
+def count_failure(tick: Tick, name: str, *, blame_timeouts: bool = False) -> int:
     state = tick.state
     state.failures[name] = state.failures.get(name, 0) + 1
+    timed_out = frozenset(state.timed_out - tick.index.person_effects)
+    if blame_timeouts and timed_out:
+        state.blamed_on_timeouts.setdefault(name, []).append(timed_out)
     return state.failures[name]
+
+
+def late_effect(tick: Tick, effect: str) -> None:
+    """`effect` timed out and happened after all: the failures blamed on its time-out are
+    taken back, and the operations it put in error may go on where they were."""
+    state = tick.state
+    for name, blamed in sorted(state.blamed_on_timeouts.items()):
+        kept = [effects for effects in blamed if effect not in effects]
+        taken_back = len(blamed) - len(kept)
+        if not taken_back:
+            continue
+        left = state.failures.get(name, 0) - taken_back
+        if left > 0:
+            state.failures[name] = left
+        else:
+            state.failures.pop(name, None)
+        if kept:
+            state.blamed_on_timeouts[name] = kept
+        else:
+            del state.blamed_on_timeouts[name]
+        if state.operations[name] == OperationState.ERROR:
+            state.resumable.add(name)
+    tick.errors_may_clear = True
+
+
+def forget_failures(tick: Tick, name: str) -> None:
+    """The operation starts afresh: it reached its goal, was released or reset."""
+    state = tick.state
+    state.failures.pop(name, None)
+    state.blamed_on_timeouts.pop(name, None)
 
 
 def fail_operation(tick: Tick, name: str, why: str) -> None:

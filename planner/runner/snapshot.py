@@ -50,6 +50,9 @@ _ADDED = {
     "restart_user": "",
     "intention_causes": {},
     "operation_causes": {},
+    "blamed_on_timeouts": {},
+    "resumable": [],
+    "reminded": {},
 }
 
 T = TypeVar("T")
@@ -99,6 +102,12 @@ def _fields(state: RunnerState) -> dict[str, Any]:
         "halted": state.halted,
         "intention_causes": dict(state.intention_causes),
         "operation_causes": dict(state.operation_causes),
+        "blamed_on_timeouts": {
+            name: [sorted(effects) for effects in blamed]
+            for name, blamed in sorted(state.blamed_on_timeouts.items())
+        },
+        "resumable": sorted(state.resumable),
+        "reminded": dict(sorted(state.reminded.items())),
     }
 
 
@@ -233,7 +242,26 @@ class _Loader:
             halted=strings["halted"],
             intention_causes=self.causes(data["intention_causes"], "intention"),
             operation_causes=self.causes(data["operation_causes"], "operation"),
+            blamed_on_timeouts=self.blamed(data["blamed_on_timeouts"]),
+            resumable=self.names(data["resumable"], "operation", "resumable"),
+            reminded=self.counts(data["reminded"], "transition", "reminded"),
         )
+
+    def counts(self, raw: Any, what: str, where: str) -> dict[str, int]:
+        counts = self.mapping(raw, what, where)
+        for name, count in counts.items():
+            self.check(count, int, f"{where}['{name}']")
+        return counts
+
+    def blamed(self, raw: Any) -> dict[str, list[frozenset[str]]]:
+        blamed = self.mapping(raw, "operation", "blamed_on_timeouts")
+        return {
+            name: [
+                frozenset(self.names(effects, "transition", f"blamed_on_timeouts['{name}']"))
+                for effects in self.check(lists, list, f"blamed_on_timeouts['{name}']")
+            ]
+            for name, lists in blamed.items()
+        }
 
     def causes(self, raw: Any, what: str) -> dict[str, str]:
         where = f"{what}_causes"

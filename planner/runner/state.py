@@ -111,6 +111,11 @@ class RunnerState:
     # the executing operations' goals for the transition planner, fixed when each started
     operation_goals: dict[str, Expr] = field(default_factory=dict)
     failures: dict[str, int] = field(default_factory=dict)  # per operation, since it last finished
+    # failures counted while device effects were timed out: per operation, the timed-out
+    # effects each such failure is blamed on.  An effect that comes late takes its failures
+    # back, and the operations it made fail go on where they were (`resumable`).
+    blamed_on_timeouts: dict[str, list[frozenset[str]]] = field(default_factory=dict)
+    resumable: set[str] = field(default_factory=set)
     operation_plan: OperationPlan | None = None
     transition_plan: TransitionPlan | None = None
     recovery: TransitionPlan | None = None  # forbidden-state recovery in progress
@@ -130,6 +135,7 @@ class RunnerState:
     unavailable: set[str] = field(default_factory=set)
     effect_enabled_since: dict[str, float] = field(default_factory=dict)
     timed_out: set[str] = field(default_factory=set)
+    reminded: dict[str, int] = field(default_factory=dict)  # a person's effect: reminders sent
     restart_mode: bool = False
     restart_reason: str = ""  # why restart mode was entered, and by whom
     restart_user: str = ""
@@ -160,6 +166,8 @@ class RunnerState:
             operations=dict(self.operations),
             operation_goals=dict(self.operation_goals),
             failures=dict(self.failures),
+            blamed_on_timeouts={k: list(v) for k, v in self.blamed_on_timeouts.items()},
+            resumable=set(self.resumable),
             operation_plan=_copied(self.operation_plan),
             transition_plan=_copied(self.transition_plan),
             recovery=_copied(self.recovery),
@@ -169,6 +177,7 @@ class RunnerState:
             unavailable=set(self.unavailable),
             effect_enabled_since=dict(self.effect_enabled_since),
             timed_out=set(self.timed_out),
+            reminded=dict(self.reminded),
             resetting=set(self.resetting),
             auto_start=set(self.auto_start),
             intention_causes=dict(self.intention_causes),

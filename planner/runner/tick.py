@@ -56,6 +56,7 @@ class Tick:
         """What made operations fail is gone (a resource answers again, an effect is usable
         again): their failures are forgotten and what is in error is checked at once."""
         self.state.failures.clear()
+        self.state.blamed_on_timeouts.clear()
         self.errors_may_clear = True
 
     def emit(
@@ -90,6 +91,8 @@ class Tick:
         state = self.state
         operations, causes = state.operations, state.operation_causes
         self._change(EventKind.OPERATION, OPERATION_LIFE_CYCLE, operations, causes, name, new, why)
+        if new is not OperationState.ERROR:
+            state.resumable.discard(name)
 
     def _change(
         self,

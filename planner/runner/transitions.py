@@ -13,6 +13,7 @@ and count a failure, and the operation plan is made again without them.
 from __future__ import annotations
 
 from planner.expressions import Expr, conjunction
+from planner.planning import PlanStatus
 from planner.runner.following import follow, plan_reaches, startable, take
 from planner.runner.queries import announce, ask, recovery_flags, transition_query
 from planner.runner.restart import follow_reset_plan
@@ -60,6 +61,10 @@ def plan_transitions(tick: Tick, executing: list[str], goal: Expr, reason: Repla
         state.transition_plan = follow(tick, goal, result)
         return True
     state.transition_plan = None
+    if result.status is PlanStatus.OVER_BUDGET:
+        fail_operations(tick, executing, "no plan within the planning budget")
+        state.replan_operations = ReplanReason.ERROR
+        return False
     fail_operations(tick, which_operations_fail(tick, executing) or executing)
     state.replan_operations = ReplanReason.ERROR
     return False
@@ -76,8 +81,8 @@ def which_operations_fail(tick: Tick, executing: list[str]) -> list[str]:
     return failed
 
 
-def fail_operations(tick: Tick, names: list[str]) -> None:
+def fail_operations(tick: Tick, names: list[str], why: str = "its goal cannot be reached") -> None:
     for name in names:
-        count = count_failure(tick, name)
-        why = "its goal cannot be reached" + (f" ({count} failures)" if count > 1 else "")
-        fail_operation(tick, name, why)
+        count = count_failure(tick, name, blame_timeouts=True)
+        counted = why + (f" ({count} failures)" if count > 1 else "")
+        fail_operation(tick, name, counted)

@@ -37,6 +37,8 @@ class OperationState(StrEnum):
     executing -> error     the transition planner cannot reach its goal
     error -> initial       the background check can reach its goal again, the maintenance it
                            needed is done (within its retries), or it is reset
+    error -> executing     it failed only because a device's effect timed out, and the effect
+                           came late: it goes on where it was
     """
 
     INITIAL = "i"
@@ -57,7 +59,7 @@ INTENTION_LIFE_CYCLE: Mapping[IntentionState, frozenset[IntentionState]] = {
 OPERATION_LIFE_CYCLE: Mapping[OperationState, frozenset[OperationState]] = {
     OperationState.INITIAL: frozenset({OperationState.EXECUTING}),
     OperationState.EXECUTING: frozenset({OperationState.INITIAL, OperationState.ERROR}),
-    OperationState.ERROR: frozenset({OperationState.INITIAL}),
+    OperationState.ERROR: frozenset({OperationState.INITIAL, OperationState.EXECUTING}),
 }
 """Which state of an operation may follow which (the docstring of `OperationState`)."""
 
@@ -114,6 +116,7 @@ class EventKind(StrEnum):
     UNEXPECTED = "unexpected"  # a measured change no effect explains, or another effect
     OBSERVED = "observed"  # a decision or estimated variable reported by a pipeline
     TIMEOUT = "timeout"  # an effect did not happen in time: disabled in planning
+    REMINDER = "reminder"  # a person's step has waited a while (never a time-out)
     REENABLED = "reenabled"  # a timed-out effect is usable again
     UNAVAILABLE = "unavailable"  # a resource stopped answering
     AVAILABLE = "available"  # it answers again

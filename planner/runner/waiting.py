@@ -71,13 +71,14 @@ def _stopped(runner: Runner, state: RunnerState) -> list[Waiting]:
         )
     for effect in sorted(state.timed_out):
         owner = runner.index.owner.get(effect, "")
+        described = runner.index.model.transition(effect).description
+        what = f"{effect} ({described})" if described else effect
+        on = f" on {owner}" if owner else ""
         out.append(
             Waiting(
                 Who.ENGINEER,
                 effect,
-                f"{runner.index.describe(effect)} did not happen in time"
-                + (f" on {owner}" if owner else "")
-                + ": fix the cause, then re-enable it",
+                f"{what} did not happen in time{on}: mend {owner or 'it'}, then re-enable it",
             )
         )
     if state.restart_mode:

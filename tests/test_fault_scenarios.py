@@ -1,0 +1,180 @@
+"""The fault scenarios of `models/scenarios/faults/`: situations beyond seed 000 Table 1, of
+every class of issue 13 (slow planning, endless retries, errors that do not clear, dead ends,
+rejected recovery, people treated as devices).  Each says in its `expect` how a good station
+ends: done, or stopped with a `waiting_for` that names who must do what.  None may hang, and
+a stop is quiet: nothing is planned again while nothing changes."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from app.scenario import Planners, Scenario, load_scenario, play
+from planner.operation_planner import OperationPlanner
+from planner.runner import Event, EventKind, RunnerState
+from planner.station import Station, load_station
+from planner.transition_planner import TransitionPlanner
+
+ROOT = Path(__file__).resolve().parent.parent
+MODEL = ROOT / "models" / "demo_station.yaml"
+FAULTS = sorted((ROOT / "models" / "scenarios" / "faults").glob("*.yaml"))
+CLASSES = {
+    "slow planning",
+    "endless retries",
+    "errors that do not clear",
+    "dead ends",
+    "rejected recovery",
+    "people are not devices",
+}
+
+
+@pytest.fixture(scope="module")
+def demo() -> tuple[Station, Planners]:
+    station = load_station(MODEL.read_text(), str(MODEL))
+    return station, Planners(TransitionPlanner(station.model), OperationPlanner(station))
+
+
+@pytest.fixture(scope="module")
+def plays(demo: tuple[Station, Planners]) -> Iterator[dict[str, tuple[Scenario, list[Event]]]]:
+    """Each scenario played once, lazily, for all the tests of this module."""
+    station, planners = demo
+    cache: dict[str, tuple[Scenario, list[Event]]] = {}
+
+    class Plays(dict[str, tuple[Scenario, list[Event]]]):
+        def __missing__(self, name: str) -> tuple[Scenario, list[Event]]:
+            path = next(p for p in FAULTS if p.stem == name)
+            scenario = load_scenario(path.read_text(), str(path), station)
+            cache[name] = (scenario, list(play(station, scenario, planners)))
+            return cache[name]
+
+    yield Plays()
+
+
+def test_every_class_of_fault_has_scenarios_that_say_how_they_end(
+    demo: tuple[Station, Planners],
+) -> None:
+    station, _ = demo
+    seen: dict[str, int] = {}
+    for path in FAULTS:
+        expect = load_scenario(path.read_text(), str(path), station).expect
+        assert expect.get("class") in CLASSES, path.name
+        assert expect.get("ends") in ("done", "stopped"), path.name
+        assert (expect["ends"] == "stopped") == bool(expect.get("waiting_for")), path.name
+        seen[expect["class"]] = seen.get(expect["class"], 0) + 1
+    assert set(seen) == CLASSES and min(seen.values()) >= 2, seen
+
+
+@pytest.mark.parametrize("path", FAULTS, ids=lambda p: p.stem)
+def test_a_fault_scenario_ends_as_a_good_station_would(
+    plays: dict[str, tuple[Scenario, list[Event]]], path: Path
+) -> None:
+    scenario, events = plays[path.stem]
+    expect: dict[str, Any] = dict(scenario.expect)
+    last = events[-1]
+    assert last.kind.value == expect["ends"], (last.subject, last.detail)
+    if last.kind is EventKind.STOPPED:
+        waiting = last.detail["waiting_for"]
+        wanted = expect["waiting_for"]
+        assert len(waiting) == len(wanted), waiting
+        for item, want in zip(waiting, wanted, strict=True):
+            assert (item["who"], item["subject"]) == (want["who"], want["subject"]), item
+            assert want["says"] in item["what"], item["what"]
+        # quiet: the station settled long before the time limit and asked nothing since
+        activity = (EventKind.PLAN, EventKind.OPERATION, EventKind.INTENTION)
+        settled = max(e.time for e in events if e.kind in activity)
+        assert last.time - settled > 30, settled
+    # nothing a plan takes may enter a forbidden state: every recovery ends or holds
+    forbidden = [e for e in events if e.kind is EventKind.FORBIDDEN]
+    assert len(forbidden) <= 3, [e.time for e in forbidden]
+
+
+def test_while_planning_is_slow_people_are_answered_at_once_and_devices_watched(
+    plays: dict[str, tuple[Scenario, list[Event]]],
+) -> None:
+    """Every query takes 6 s: the operator's reject at 82 s is taken in that tick, effects
+    are taken while the station plans, and the run still finishes."""
+    scenario, events = plays["slow_planning_while_operator_rejects"]
+    [reject] = [e for e in events if e.kind is EventKind.OPERATOR and e.subject == "reject"]
+    assert reject.time == 82.0
+    plans = [e.time for e in events if e.kind is EventKind.PLAN]
+    gaps = [(a, b) for a, b in zip(plans, plans[1:], strict=False) if b - a >= 5.9]
+    assert gaps, plans  # planning took its 6 s
+    waiting_effects = [
+        e for e in events if e.kind is EventKind.EFFECT and any(a < e.time < b for a, b in gaps)
+    ]
+    assert waiting_effects  # the world was watched meanwhile
+    assert events[-1].kind is EventKind.DONE
+
+
+def test_a_query_over_its_budget_is_its_own_status_and_cause(
+    plays: dict[str, tuple[Scenario, list[Event]]],
+) -> None:
+    _, events = plays["planning_over_budget"]
+    plans = [e for e in events if e.kind is EventKind.PLAN]
+    assert plans and all(e.detail["status"] == "over_budget" for e in plans)
+    assert plans[0].time == 10.0  # answered when the budget was used up, not after 30 s
+    [error] = [e for e in events if e.kind is EventKind.INTENTION and e.detail["after"] == "error"]
+    assert "planning budget" in error.detail["why"]
+
+
+def test_people_get_reminders_never_time_outs(
+    plays: dict[str, tuple[Scenario, list[Event]]],
+) -> None:
+    for name in ("operator_away_for_minutes", "slow_operator_places_bolts"):
+        _, events = plays[name]
+        timeouts = [e.subject for e in events if e.kind is EventKind.TIMEOUT]
+        assert not [t for t in timeouts if t.startswith("operator.")], (name, timeouts)
+        errors = [e for e in events if e.kind is EventKind.OPERATION and e.detail["after"] == "error"]
+        assert errors == [], name
+    _, events = plays["operator_away_for_minutes"]
+    reminders = [e for e in events if e.kind is EventKind.REMINDER]
+    assert reminders and all(e.detail["waited"] >= 120 for e in reminders)
+    assert all(e.detail["what"] for e in reminders)
+
+
+def test_a_late_device_effect_is_taken_and_the_operation_goes_on_where_it_was(
+    plays: dict[str, tuple[Scenario, list[Event]]],
+) -> None:
+    """r1's moves take 8 s against a 5 s time-out: each times out and arrives late.  The
+    late arrival takes back the failure, and the operation it interrupted goes on instead
+    of starting over (which timed out again, for ever)."""
+    _, events = plays["slow_r1_moves_arrive_late"]
+    late = [e for e in events if e.kind is EventKind.EFFECT and e.detail.get("late")]
+    assert late and all(e.subject == "r1.goto.arrive" for e in late)
+    resumed = [
+        e
+        for e in events
+        if e.kind is EventKind.OPERATION and (e.detail["before"], e.detail["after"]) == ("error", "e")
+    ]
+    assert resumed and {e.time for e in resumed} <= {e.time for e in late}
+    assert events[-1].kind is EventKind.DONE
+
+
+def test_a_flapping_network_holds_nothing_against_the_robot(
+    demo: tuple[Station, Planners], plays: dict[str, tuple[Scenario, list[Event]]]
+) -> None:
+    """r2 drops out three times: each time it answers again, what its silence made fail is
+    forgotten, and the bolts are finished with r2."""
+    _, events = plays["flapping_r2_network"]
+    kinds = [e.kind for e in events if e.subject == "r2"]
+    assert kinds.count(EventKind.UNAVAILABLE) == 3 and kinds.count(EventKind.AVAILABLE) == 3
+    assert events[-1].kind is EventKind.DONE
+
+
+def test_a_reminder_is_sent_once_per_while(demo: tuple[Station, Planners]) -> None:
+    """The operator confirms just after 180 s; with reminders every 60 s that is three of
+    them, and the count is forgotten once the step is done."""
+    station, planners = demo
+    path = next(p for p in FAULTS if p.stem == "operator_away_for_minutes")
+    text = path.read_text().replace("effect_timeout: 5.0", "effect_timeout: 5.0, reminder: 60")
+    scenario = load_scenario(text.replace("until: 2400", "until: 250"), str(path), station)
+    states: list[RunnerState] = []
+    events = list(play(station, scenario, planners, watch=states.append))
+    reminders = [e for e in events if e.kind is EventKind.REMINDER]
+    confirm = [round(e.detail["waited"]) for e in reminders if e.subject == "operator.confirm"]
+    assert confirm == [60, 120, 180]
+    assert {"operator.confirm": 3} in [s.reminded for s in states]
+    assert "operator.confirm" not in states[-1].reminded
