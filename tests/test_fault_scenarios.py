@@ -127,7 +127,9 @@ def test_people_get_reminders_never_time_outs(
         _, events = plays[name]
         timeouts = [e.subject for e in events if e.kind is EventKind.TIMEOUT]
         assert not [t for t in timeouts if t.startswith("operator.")], (name, timeouts)
-        errors = [e for e in events if e.kind is EventKind.OPERATION and e.detail["after"] == "error"]
+        errors = [
+            e for e in events if e.kind is EventKind.OPERATION and e.detail["after"] == "error"
+        ]
         assert errors == [], name
     _, events = plays["operator_away_for_minutes"]
     reminders = [e for e in events if e.kind is EventKind.REMINDER]
@@ -147,7 +149,8 @@ def test_a_late_device_effect_is_taken_and_the_operation_goes_on_where_it_was(
     resumed = [
         e
         for e in events
-        if e.kind is EventKind.OPERATION and (e.detail["before"], e.detail["after"]) == ("error", "e")
+        if e.kind is EventKind.OPERATION
+        and (e.detail["before"], e.detail["after"]) == ("error", "e")
     ]
     assert resumed and {e.time for e in resumed} <= {e.time for e in late}
     assert events[-1].kind is EventKind.DONE

@@ -554,7 +554,9 @@ def test_a_recovery_with_every_way_out_rejected_holds_quietly_and_says_whom_it_w
     engineer.  Once the operator takes the filters off by hand, production goes on."""
     station = load_station(MODEL.read_text(), str(MODEL))
     planners = Planners(TransitionPlanner(station.model), OperationPlanner(station))
-    path = ROOT / "models" / "scenarios" / "faults" / "reject_oil_filter_removal_and_alternative.yaml"
+    path = (
+        ROOT / "models" / "scenarios" / "faults" / "reject_oil_filter_removal_and_alternative.yaml"
+    )
     scenario = replace(load_scenario(path.read_text(), str(path), station), until=40.0)
     events = list(play(station, scenario, planners))
     after = [e for e in events if e.time >= 22.0]
