@@ -530,8 +530,9 @@ def queries_section(
 ) -> str:
     return (
         "\n## Every planning query of the runner, per scenario (demo station)\n\n"
-        "Each scenario (E1-E9 of models/scenarios, then models/scenarios/faults: operators who reject "
-        "recovery steps, double faults, faults that never clear) is played by "
+        "Each scenario (E1-E9 of models/scenarios, then models/scenarios/faults: slow "
+        "planning, endless retries, errors that must clear, dead ends, rejected recovery, "
+        "slow people and devices) is played by "
         "`sp run models/demo_station.yaml --scenario FILE --speed 0 --json --quiet` in a child "
         f"process killed after {limit:g} s wall, {runs} play{'s' * (runs != 1)} per scenario "
         "(one if it was cut off). Every "

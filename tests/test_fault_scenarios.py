@@ -7,6 +7,7 @@ a stop is quiet: nothing is planned again while nothing changes."""
 from __future__ import annotations
 
 from collections.abc import Iterator
+from itertools import pairwise
 from pathlib import Path
 from typing import Any
 
@@ -96,16 +97,19 @@ def test_while_planning_is_slow_people_are_answered_at_once_and_devices_watched(
 ) -> None:
     """Every query takes 6 s: the operator's reject at 82 s is taken in that tick, effects
     are taken while the station plans, and the run still finishes."""
-    scenario, events = plays["slow_planning_while_operator_rejects"]
+    _, events = plays["slow_planning_while_operator_rejects"]
     [reject] = [e for e in events if e.kind is EventKind.OPERATOR and e.subject == "reject"]
     assert reject.time == 82.0
     plans = [e.time for e in events if e.kind is EventKind.PLAN]
-    gaps = [(a, b) for a, b in zip(plans, plans[1:], strict=False) if b - a >= 5.9]
+    gaps = [(a, b) for a, b in pairwise(plans) if b - a >= 5.9]
     assert gaps, plans  # planning took its 6 s
     waiting_effects = [
         e for e in events if e.kind is EventKind.EFFECT and any(a < e.time < b for a, b in gaps)
     ]
     assert waiting_effects  # the world was watched meanwhile
+    # the forbidden state is said in the tick it is seen, once, before its plan is ready
+    seen = next(e.time for e in events if e.kind is EventKind.OBSERVED)
+    assert [e.time for e in events if e.kind is EventKind.FORBIDDEN] == [seen]
     assert events[-1].kind is EventKind.DONE
 
 

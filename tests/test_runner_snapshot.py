@@ -140,16 +140,25 @@ def test_the_scenarios_exercise_every_stored_field(runs: dict[str, Run]) -> None
     """The round trips above are only as good as what the states held."""
     names = {f.name for f in fields(RunnerState)} - CACHES
     used = {n for run in runs.values() for s in sampled(run.states) for n in names if getattr(s, n)}
-    # no scenario rejects a step or cycles
-    assert names - used == {"rejected", "halted"}
+    # no scenario here rejects a step, cycles, has a late effect or a person long away
+    assert names - used == {"rejected", "halted", "resumable", "reminded"}
 
 
-def test_rejected_steps_and_a_halt_round_trip(runs: dict[str, Run]) -> None:
+def test_rejected_steps_a_halt_a_late_effect_and_reminders_round_trip(
+    runs: dict[str, Run],
+) -> None:
     run = runs["e2_oil_filter_early"]
     state = next(s for s in run.states if s.recovery is not None)
     assert state.recovery is not None
     rejected = {state.recovery.blocks[0].transition}
-    assert_round_trip(run.runner, replace(state, rejected=rejected, halted="automatic cycle"))
+    rare = replace(
+        state,
+        rejected=rejected,
+        halted="automatic cycle",
+        resumable={"get_nr_r1"},
+        reminded={"operator.confirm": 2},
+    )
+    assert_round_trip(run.runner, rare)
 
 
 def test_every_field_is_stored_or_declared_a_cache(runs: dict[str, Run]) -> None:

@@ -7,10 +7,11 @@ holding, a person did a maintenance step, set an estimate or changed a product b
 
 Each operation in error that has retries left is planned for alone; if its goal can be
 reached it goes back to initial, or, when a late effect took back the failure that put it
-in error and nothing else executes, it goes on where it was (`retries.late_effect`).  Each intention in error is planned for alone by the
-operation planner (without the operations still in error); if its goal can be reached it
-executes again.  An operation's error does not outlive the intentions that needed it.
-Nothing is checked during forbidden-state recovery.
+in error and nothing else executes, it goes on where it was (`retries.late_effect`).
+Each intention in error is planned for alone by the operation planner (without the
+operations still in error); if its goal can be reached it executes again.  An
+operation's error does not outlive the intentions that needed it.  Nothing is checked
+during forbidden-state recovery.
 """
 
 from __future__ import annotations

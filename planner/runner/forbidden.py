@@ -32,12 +32,22 @@ def in_forbidden_state(tick: Tick) -> bool:
     return tick.state.recovery is not None or violates_specifications(tick)
 
 
+def announce_violation(tick: Tick) -> None:
+    """Say at once, and once, which specifications the state violates: the recovery plan
+    may still be in the making (a slow planner), but people must know now."""
+    violated = tuple(tick.index.semantics.violated(tick.current()))
+    if violated and violated != tick.state.announced:
+        tick.emit(EventKind.FORBIDDEN, ", ".join(violated), violated=list(violated))
+    tick.state.announced = violated or tick.state.announced
+
+
 def recover(tick: Tick) -> None:
     state = tick.state
     violated = tick.index.semantics.violated(tick.current())
     if state.recovery is None:
         if not violated:
             state.recovery_held = None
+            state.announced = ()
             return
         if holding(tick):
             return
@@ -47,6 +57,7 @@ def recover(tick: Tick) -> None:
         return
     if not violated and not tick.runner.is_bad(tick.current()):
         tick.emit(EventKind.RECOVERED, "all specifications hold", relaxed=sorted(state.relaxed))
+        state.announced = ()
         state.recovery = None
         state.relaxed = frozenset()
         state.rejected.clear()
@@ -85,7 +96,6 @@ def plan_recovery(tick: Tick, violated: list[str]) -> None:
     """A plan back to a state where every specification holds, without rejected steps."""
     state = tick.state
     state.relaxed = frozenset(violated)
-    tick.emit(EventKind.FORBIDDEN, ", ".join(violated), violated=violated)
     query = PlanQuery(
         tick.current(),
         TRUE,

@@ -19,8 +19,8 @@ from planner.partial_order import independent_operations
 from planner.planning import PlanStatus
 from planner.runner.maintenance import plan_maintenance
 from planner.runner.queries import announce, ask
-from planner.runner.state import OperationPlan
 from planner.runner.retries import forget_failures
+from planner.runner.state import OperationPlan
 from planner.runner.tick import Tick
 from planner.runner.values import assigned
 from planner.runner.vocabulary import (

@@ -48,8 +48,10 @@ def run_tick(tick: Tick, inputs: Inputs) -> list[Reply]:
     replies = [people.act(tick, action) for action in inputs.actions]
     automatic.settle(tick)  # 2. automatic transitions to a fixpoint
     if forbidden.in_forbidden_state(tick):
+        forbidden.announce_violation(tick)
         attempt(tick, forbidden.recover)  # 3. forbidden-state recovery, nothing else
     else:
+        tick.state.announced = ()
         intentions.start_and_finish(tick)  # 4.
         attempt(tick, operations.follow_operation_plan)  # 5. the operation planner
         attempt(tick, transitions.follow_transition_plan)  # 6. the transition planner

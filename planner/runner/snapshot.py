@@ -53,6 +53,7 @@ _ADDED = {
     "blamed_on_timeouts": {},
     "resumable": [],
     "reminded": {},
+    "announced": [],
 }
 
 T = TypeVar("T")
@@ -108,6 +109,7 @@ def _fields(state: RunnerState) -> dict[str, Any]:
         },
         "resumable": sorted(state.resumable),
         "reminded": dict(sorted(state.reminded.items())),
+        "announced": list(state.announced),
     }
 
 
@@ -245,6 +247,7 @@ class _Loader:
             blamed_on_timeouts=self.blamed(data["blamed_on_timeouts"]),
             resumable=self.names(data["resumable"], "operation", "resumable"),
             reminded=self.counts(data["reminded"], "transition", "reminded"),
+            announced=tuple(self.steps(data["announced"], "specification", "announced")),
         )
 
     def counts(self, raw: Any, what: str, where: str) -> dict[str, int]:

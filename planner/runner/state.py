@@ -121,6 +121,9 @@ class RunnerState:
     recovery: TransitionPlan | None = None  # forbidden-state recovery in progress
     relaxed: frozenset[str] = frozenset()  # the specifications the recovery plan may violate
     rejected: set[str] = field(default_factory=set)  # recovery steps an operator rejected
+    # the violated specifications last announced (a `forbidden` event), said at once even
+    # while the recovery plan is still being made, and once per violation
+    announced: tuple[str, ...] = ()
     # recovery found no plan in this state with these transitions disabled: it holds until
     # either changes (not stored: after a restart the runner plans once more, then holds)
     recovery_held: tuple[State, frozenset[str]] | None = None
