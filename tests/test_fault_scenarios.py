@@ -185,3 +185,16 @@ def test_a_reminder_is_sent_once_per_while(demo: tuple[Station, Planners]) -> No
     assert confirm == [60, 120, 180]
     assert {"operator.confirm": 3} in [s.reminded for s in states]
     assert "operator.confirm" not in states[-1].reminded
+
+
+def test_a_recovery_plan_that_waits_for_what_can_no_longer_happen_is_made_again(
+    plays: dict[str, tuple[Scenario, list[Event]]],
+) -> None:
+    """The operator's card ended before the recovery plan's step that expected it: the
+    station said so and planned again (it used to wait for the card for ever)."""
+    _, events = plays["reject_while_operator_places_bolts"]
+    stuck = [e for e in events if e.kind is EventKind.BLOCKED and e.subject == "recovery plan"]
+    assert stuck and all("can no longer happen" in e.detail["why"] for e in stuck)
+    after = [e for e in events if e.time >= stuck[0].time and e.kind is EventKind.PLAN]
+    assert after[0].subject == "TP w/MT" and after[0].detail["status"] == "found"
+    assert events[-1].kind is EventKind.DONE

@@ -23,6 +23,7 @@ from planner.planning import PlanQuery
 from planner.runner.automatic import violates_specifications
 from planner.runner.following import follow, startable, take
 from planner.runner.queries import announce, ask, disabled
+from planner.runner.state import TransitionPlan
 from planner.runner.tick import Tick
 from planner.runner.vocabulary import EventKind, PlanLevel, RecoveryFlag, ReplanReason
 
@@ -64,6 +65,14 @@ def recover(tick: Tick) -> None:
         tick.replan_operations(ReplanReason.RECOVERED)
         tick.replan_transitions(ReplanReason.RECOVERED)
         return
+    if stuck(tick, plan):  # planned again from here; approvals given so far are void
+        waits = ", ".join(sorted(plan.expected()))
+        tick.emit(EventKind.BLOCKED, "recovery plan", why=f"{waits} can no longer happen")
+        state.recovery = None
+        plan_recovery(tick, violated)
+        if state.recovery is None:
+            return
+        plan = state.recovery
     for k in startable(tick, plan):
         name = plan.blocks[k].transition
         kind = tick.index.kind_of(name)
@@ -76,6 +85,22 @@ def recover(tick: Tick) -> None:
         if kind is TransitionKind.MAINTENANCE:
             continue  # the operator does it and reports MaintenanceDone
         take(tick, plan, k, supervised=False)
+
+
+def stuck(tick: Tick, plan: TransitionPlan) -> bool:
+    """Nothing the recovery plan waits for can happen any more: no block's turn has come and
+    no effect or automatic step it expects is enabled.  A person's step that was under way
+    when the state became forbidden ends before its block is taken, and the plan would wait
+    for it for ever."""
+    if startable(tick, plan) or not plan.expected():
+        return False
+    current = tick.current()
+    unavailable = tick.state.unavailable
+    for name in plan.expected():
+        owner = tick.index.owner.get(name)
+        if owner in unavailable or tick.index.transition(name).guard(current):
+            return False  # it may yet happen (a resource may answer again)
+    return True
 
 
 def holding(tick: Tick) -> bool:
