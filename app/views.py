@@ -35,6 +35,7 @@ class TaskCard:
     transition: str = ""  # instruction, approval: the maintenance or recovery step
     step: int = 0  # approval: the recovery plan's step; instruction: k of `of`
     of: int = 0
+    rejectable: bool = False  # a recovery instruction: the person may say they cannot do it
 
 
 def task_cards(view: StationView) -> list[TaskCard]:
@@ -99,6 +100,7 @@ def _instructions(view: StationView) -> list[TaskCard]:
             )
     plan = s.recovery
     if plan is not None:
+        violated = ", ".join(sorted(s.relaxed)) or "a specification"
         for k in sorted(plan.approved - plan.taken):
             name = plan.blocks[k].transition
             if view.model.station.model.transition(name).kind is TransitionKind.MAINTENANCE:
@@ -107,9 +109,11 @@ def _instructions(view: StationView) -> list[TaskCard]:
                         CardKind.INSTRUCTION,
                         f"recovery-{name}",
                         sentence(describe(view, name)),
-                        "Approved step of the recovery from a forbidden state",
+                        f"The station is in a forbidden state ({violated}); this step gets it "
+                        "out. If you cannot do it, say so: the station looks for another way.",
                         transition=name,
                         step=k,
+                        rejectable=True,
                     )
                 )
     return cards
@@ -123,16 +127,13 @@ def _approvals(view: StationView) -> list[TaskCard]:
     cards = []
     for k in sorted(plan.asked - plan.approved):
         name = plan.blocks[k].transition
-        kind = view.model.station.model.transition(name).kind
-        yours = kind is TransitionKind.MAINTENANCE or name in view.runner.index.person_transitions
-        who = "You will" if yours else "The station will"
         cards.append(
             TaskCard(
                 CardKind.APPROVAL,
                 f"approval-{k}",
                 sentence(describe(view, name)),
-                f"The station is in a forbidden state ({violated}). {who} do this step "
-                "to get out of it, once you approve.",
+                f"The station is in a forbidden state ({violated}). The station will do this "
+                "step to get out of it, once you approve.",
                 detail=f"recovery step {k + 1} of {len(plan.blocks)}: {name}",
                 transition=name,
                 step=k,

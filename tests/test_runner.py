@@ -146,17 +146,21 @@ def test_a_different_effect_than_planned_is_an_error_event(
     assert [(e.subject, e.detail["instead_of"]) for e in unexpected] == [(happened, [instead_of])]
 
 
-def test_forbidden_state_recovery_waits_for_the_approval(
+def test_forbidden_state_recovery_waits_for_the_person_who_does_the_step(
     demo: tuple[Station, Planners],
 ) -> None:
+    """E2's way out is the operator's own step (take the filters off): an instruction, not
+    an approval; nothing moves until the operator reports it done."""
     _, events, _ = run(demo, "e2_oil_filter_early")
     kinds = [e.kind for e in events]
-    asked = kinds.index("approval")
-    approved = next(k for k, e in enumerate(events) if e.subject == "approve")
+    assert "approval" not in kinds
+    asked = kinds.index("instruction")
+    assert events[asked].detail["recovery"] is True
+    done = next(k for k, e in enumerate(events) if e.subject == "maintenance done")
     recovered = kinds.index("recovered")
-    assert asked < approved < recovered
-    # nothing was taken by the runner between the forbidden state and the approval
-    between = events[kinds.index("forbidden") : approved]
+    assert asked < done < recovered
+    # nothing was taken by the runner between the forbidden state and the operator's step
+    between = events[kinds.index("forbidden") : done]
     assert not [e for e in between if e.kind == "taken" and e.detail["type"] == "controlled"]
 
 

@@ -27,6 +27,7 @@ from planner.runner import (
     IntentionState,
     MaintenanceDone,
     OperationState,
+    Reject,
     ReplanReason,
     Runner,
     RunnerConfig,
@@ -578,24 +579,53 @@ def test_a_recovery_with_every_way_out_rejected_holds_quietly_and_says_whom_it_w
     assert events[-1].kind is EventKind.DONE
 
 
-def test_an_approval_card_says_who_does_the_step(demo_runner: Runner) -> None:
-    """A recovery step of the operator's own resource (a watch card) is the operator's to
-    do, not "the station's"; a robot's step is the station's."""
+def test_recovery_steps_of_people_are_instructions_and_of_machines_approvals(
+    demo_runner: Runner,
+) -> None:
+    """A recovery plan with the operator's maintenance step, the operator's own watch card
+    and a robot's move: the maintenance step is an instruction (reported done, or rejected
+    as "I cannot"), the watch card is shown at once (doing it is the consent), and only the
+    robot's move waits for an approval.  The cards say the same."""
     from app.station_view import ActiveModel, StationView
-    from app.views import CardKind, task_cards
+    from app.views import CardKind, TaskCard, task_cards
 
     runner = demo_runner
+    heard = everyone(runner)
+    mounted = {f"oil_filter{k}.state": "mounted" for k in (1, 2, 3)}
+    tightened = {f"bp{k}.state": "tightened" for k in (1, 2, 3)}
+    state = runner.initial(0.0, {"frame.state": "on_engine", **tightened, **mounted})
+    steps = ["operator.remove_oil_filters", "operator.place_bolts_bp4", "r1.goto_scan"]
+    state.recovery = plan_of(runner, "true", steps)
+    state.relaxed = frozenset(runner.semantics.violated(runner.index.as_state(state.values)))
+    result = runner.tick(state, Inputs(heartbeats=heard), 0.1)
+    kinds = {e.subject: e.kind for e in result.events if e.kind is not EventKind.FORBIDDEN}
+    assert kinds["operator.remove_oil_filters"] is EventKind.INSTRUCTION
+    assert kinds["operator.place_bolts_bp4"] is EventKind.TAKEN  # the watch shows the card
+    recovery = result.state.recovery
+    assert recovery is not None and recovery.approved == {0, 1}
     station = runner.station
     model = ActiveModel(1, 1, "", station, runner.transition_planner, runner.operation_planner)
-    state = runner.initial(0.0)
-    state.recovery = plan_of(runner, "true", ["operator.place_bolts_bp1", "r1.goto_scan"])
-    state.recovery.asked |= {0, 1}
-    view = StationView(0, 0.0, model, runner, state, (), (), simulated=True)
-    cards = [c for c in task_cards(view) if c.kind is CardKind.APPROVAL]
-    assert [(c.transition, c.why.split(". ")[1][:15]) for c in cards] == [
-        ("operator.place_bolts_bp1", "You will do thi"),
-        ("r1.goto_scan", "The station wil"),
-    ]
+
+    def cards(state: RunnerState) -> dict[str, TaskCard]:
+        view = StationView(0, 0.0, model, runner, state, (), (), simulated=True)
+        return {c.transition: c for c in task_cards(view) if c.transition}
+
+    first = cards(result.state)["operator.remove_oil_filters"]
+    assert first.kind is CardKind.INSTRUCTION and first.rejectable
+
+    # the operator cannot take the filters off: rejected like an approval, and the way out
+    # planned without it has robots' steps, which wait for approvals
+    reject = Reject(user="operator", step=0)
+    later = runner.tick(result.state, Inputs(heartbeats=heard, actions=(reject,)), 0.2)
+    assert [r.accepted for r in later.replies] == [True]
+    assert "operator.remove_oil_filters" in later.state.rejected
+    recovery = later.state.recovery
+    assert recovery is not None and recovery.steps[0] == "r1.goto_scan", recovery.steps
+    asked = [e for e in later.events if e.kind is EventKind.APPROVAL]
+    assert [e.subject for e in asked] == ["r1.goto_scan"]
+    move = cards(later.state)["r1.goto_scan"]
+    assert move.kind is CardKind.APPROVAL and "The station will do this step" in move.why
+    assert later.state.values["r1.ref"] != "scan"  # not taken before it is approved
 
 
 def test_a_new_model_version_keeps_what_both_versions_know(demo_runner: Runner) -> None:

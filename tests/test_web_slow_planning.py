@@ -29,12 +29,13 @@ def test_a_reject_is_answered_at_once_while_the_station_plans(slow: RunningStati
     assert played.status_code == 200, played.text
 
     def approvals() -> list[dict[str, object]]:
-        """The approval cards; the operator's watch cards are confirmed on the way."""
+        """The recovery steps a person may reject: approvals of the station's steps and the
+        operator's own recovery instructions; the watch cards are confirmed on the way."""
         cards = client.get("/api/tasks", headers=operator).json()
         for card in cards:
             if card["kind"] == "command":
                 client.post(f"/api/cards/{card['card']}/done", headers=operator)
-        return [c for c in cards if c["kind"] == "approval"]
+        return [c for c in cards if c["kind"] == "approval" or c["rejectable"]]
 
     slow.wait(lambda: bool(approvals()), 120)
     step = approvals()[0]["step"]

@@ -192,7 +192,8 @@ class StationOut(BaseModel):
 class TaskCardOut(BaseModel):
     """One thing a person must do now: a command card (POST /api/cards/{card}/done), a
     maintenance instruction (POST /api/maintenance/{transition}/done) or a recovery step to
-    approve (POST /api/approvals/{step})."""
+    approve (POST /api/approvals/{step}).  A `rejectable` instruction is a person's step of
+    a forbidden-state recovery: one who cannot do it rejects it like an approval."""
 
     kind: CardKind
     key: str
@@ -203,6 +204,7 @@ class TaskCardOut(BaseModel):
     transition: str
     step: int
     of: int
+    rejectable: bool = False
 
 
 class CardDoneOut(BaseModel):
@@ -397,6 +399,7 @@ def card_out(card: TaskCard) -> TaskCardOut:
         transition=card.transition,
         step=card.step,
         of=card.of,
+        rejectable=card.rejectable,
     )
 
 

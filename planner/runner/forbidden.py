@@ -2,13 +2,16 @@
 
 When the state violates a specification, production stops: the runner drops the violated
 specifications, plans with maintenance transitions back to a state where every one holds,
-and asks an operator to approve each step before it is taken.  Approved maintenance steps
-are the operator's to do (reported with `MaintenanceDone`); approved controlled steps the
-runner takes.  A rejected step is left out of the next plan.  Recovery ends when every
-specification holds and the state is not bad.
+and has a person consent to each step before it is taken.  A machine's step waits for an
+operator's approval, then the runner takes it.  A person's step is an instruction: a
+maintenance step is shown as such and reported done (`MaintenanceDone`), a step of a
+person's resource (a watch card) is taken, which shows it; doing it is the consent.  A
+rejected step (a machine's, or an instruction a person cannot follow) is left out of the
+next plan.  Recovery ends when every specification holds and the state is not bad.
 
-    no recovery --violation--> plan found: steps shown for approval as their turn comes
-    step asked --approve--> approved --taken / done by the operator--> next step
+    no recovery --violation--> plan found: steps shown as their turn comes
+    machine's step asked --approve--> approved --taken--> next step
+    person's step shown (an instruction) --done--> next step
     step asked --reject--> plan made again without it
     no plan (everything rejected) --> hold: nothing moves, said once (an `error` event)
     holding --the state or what planning may use changes--> rejections forgotten, plan again
@@ -76,14 +79,19 @@ def recover(tick: Tick) -> None:
     for k in startable(tick, plan):
         name = plan.blocks[k].transition
         kind = tick.index.kind_of(name)
-        if k not in plan.approved:
-            if k not in plan.asked:
-                plan.asked.add(k)
-                what = tick.index.describe(name)
+        if k not in plan.asked:
+            plan.asked.add(k)
+            what = tick.index.describe(name)
+            if kind is TransitionKind.MAINTENANCE:
+                plan.approved.add(k)  # a person's step: doing it is the consent
+                of = len(plan.blocks)
+                tick.emit(EventKind.INSTRUCTION, name, step=k, of=of, what=what, recovery=True)
+            elif name in tick.index.person_transitions:
+                plan.approved.add(k)  # the person's own card: showing it asks them
+            else:
                 tick.emit(EventKind.APPROVAL, name, step=k, type=kind.value, what=what)
-            continue
-        if kind is TransitionKind.MAINTENANCE:
-            continue  # the operator does it and reports MaintenanceDone
+        if k not in plan.approved or kind is TransitionKind.MAINTENANCE:
+            continue  # waits for approval, or for the operator to report it done
         take(tick, plan, k, supervised=False)
 
 
