@@ -71,8 +71,24 @@ def _command_cards(view: StationView) -> list[TaskCard]:
             break
     else:
         title = sentence(str(card).replace("_", " "))
-    why = "; ".join(_executing(view)) or "the operation plan asks for it"
-    return [TaskCard(CardKind.COMMAND, f"card-{card}", title, sentence(why), card=str(card))]
+    why = sentence("; ".join(_executing(view)) or "the operation plan asks for it")
+    waited = _waited_for_a_person(view)
+    if waited:
+        why += f". The station has been waiting for you for {waited}."
+    return [TaskCard(CardKind.COMMAND, f"card-{card}", title, why, card=str(card))]
+
+
+def _waited_for_a_person(view: StationView) -> str:
+    """How long the station has waited for a person's step, once it has reminded them
+    (`RunnerConfig.reminder`): a person gets reminded, never timed out."""
+    state = view.state
+    since = [
+        state.effect_enabled_since[n] for n in state.reminded if n in state.effect_enabled_since
+    ]
+    if not since:
+        return ""
+    minutes = int((view.now - min(since)) // 60)
+    return f"{minutes} min" if minutes >= 1 else f"{int(view.now - min(since))} s"
 
 
 def _instructions(view: StationView) -> list[TaskCard]:

@@ -141,9 +141,10 @@ def test_kill_9_loses_no_state_and_no_committed_audit_record(serve: Serve) -> No
     assert f"{len(rows)} records" in check.stdout or "records" in check.stdout
 
 
-def test_a_pending_approval_survives_kill_9_and_can_be_given_after(tmp_path: Path) -> None:
-    """E2 up to the forbidden state: the recovery step waits for the operator's approval when
-    the process dies; after the restart the same card waits, and approving it goes on."""
+def test_a_pending_recovery_step_survives_kill_9_and_can_be_done_after(tmp_path: Path) -> None:
+    """E2 up to the forbidden state: the operator's recovery step (take the filters off)
+    waits when the process dies; after the restart the same card waits, and reporting it
+    done goes on."""
     serve = Serve(tmp_path / "station.db", "--speed", "4")
     try:
         serve.start()
@@ -154,30 +155,25 @@ def test_a_pending_approval_survives_kill_9_and_can_be_given_after(tmp_path: Pat
             assert played.status_code == 200, played.text
             deadline = time.monotonic() + 90
             while True:
-                assert time.monotonic() < deadline, "no approval card"
+                assert time.monotonic() < deadline, "no recovery card"
                 cards = api.get("/api/tasks", headers=operator).json()
-                if any(c["kind"] == "approval" for c in cards):
+                if any(c["rejectable"] for c in cards):
                     break
                 for card in cards:
                     if card["kind"] == "command":
                         api.post(f"/api/cards/{card['card']}/done", headers=operator)
                 time.sleep(0.1)
-            waiting = [c for c in cards if c["kind"] == "approval"]
+            waiting = [c for c in cards if c["rejectable"]]
         serve.kill()
 
         serve.start()
         with httpx.Client(base_url=serve.url, timeout=60) as api:
             cards = api.get("/api/tasks", headers=operator).json()
-            assert [c for c in cards if c["kind"] == "approval"] == waiting
-            step = waiting[0]["step"]
-            approved = api.post(
-                f"/api/approvals/{step}", headers=operator, json={"decision": "approve"}
-            )
-            assert approved.status_code == 200, approved.text
+            assert [c for c in cards if c["rejectable"]] == waiting
+            assert waiting[0]["transition"] == "operator.remove_oil_filters"
+            done = api.post("/api/maintenance/operator.remove_oil_filters/done", headers=operator)
+            assert done.status_code == 200, done.text
             cards = api.get("/api/tasks", headers=operator).json()
-            assert any(
-                c["kind"] == "instruction" and c["transition"] == "operator.remove_oil_filters"
-                for c in cards
-            ), cards
+            assert not [c for c in cards if c["rejectable"]], cards
     finally:
         serve.stop()

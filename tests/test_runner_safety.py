@@ -658,3 +658,26 @@ def test_a_new_model_version_keeps_what_both_versions_know(demo_runner: Runner) 
     assert moved.values["r1.pos"] == "home"  # 'scan' is not a position of this version
     assert set(moved.intentions) == {"assemble"} and moved.intention_causes == {}
     assert moved.restart_mode
+
+
+def test_a_watch_card_says_how_long_the_station_has_waited_once_it_reminded(
+    demo_runner: Runner,
+) -> None:
+    """A person is reminded, not timed out: after a reminder the card says how long the
+    station has been waiting for them; before it, nothing nags."""
+    from app.station_view import ActiveModel, StationView
+    from app.views import CardKind, task_cards
+
+    runner = demo_runner
+    station = runner.station
+    model = ActiveModel(1, 1, "", station, runner.transition_planner, runner.operation_planner)
+    state = runner.initial(0.0, {"operator.card": "place_bp1"})
+    state.effect_enabled_since["operator.confirm"] = 10.0
+
+    def why(now: float, reminded: dict[str, int]) -> str:
+        view = StationView(0, now, model, runner, replace(state, reminded=reminded), (), (), True)
+        [card] = [c for c in task_cards(view) if c.kind is CardKind.COMMAND]
+        return card.why
+
+    assert "waiting for you" not in why(100.0, {})
+    assert why(160.0, {"operator.confirm": 1}).endswith("waiting for you for 2 min.")
