@@ -681,3 +681,26 @@ def test_a_watch_card_says_how_long_the_station_has_waited_once_it_reminded(
 
     assert "waiting for you" not in why(100.0, {})
     assert why(160.0, {"operator.confirm": 1}).endswith("waiting for you for 2 min.")
+
+
+def test_a_maintenance_plan_that_waits_for_what_can_no_longer_happen_is_made_again(
+    demo_runner: Runner,
+) -> None:
+    """The maintenance plan waits for r1 to arrive at the scan pose, but r1 is already
+    there (it arrived before the plan's step was taken): the plan is dropped, said so, and
+    planned again from where the station is, instead of waiting for ever."""
+    runner = demo_runner
+    state = runner.initial(0.0, {"frame.state": "on_engine", "r1.pos": "scan", "r1.ref": "scan"})
+    state.intentions["tighten_bolts"] = IntentionState.ERROR
+    state.operations["get_nr_r1"] = OperationState.ERROR
+    stale = plan_of(runner, "true", ["r1.goto_scan", "r1.goto.arrive"])
+    stale.start(0)  # taken: waits for r1.goto.arrive, whose guard (ref != pos) is false
+    state.maintenance, state.maintenance_for = stale, "get_nr_r1"
+    result = runner.tick(state, Inputs(heartbeats=everyone(runner)), 0.1)
+    blocked = [e for e in result.events if e.kind is EventKind.BLOCKED]
+    assert [(e.subject, e.detail["why"]) for e in blocked] == [
+        ("maintenance plan", "r1.goto.arrive can no longer happen")
+    ]
+    assert result.state.maintenance is not stale
+    asked = [e for e in result.events if e.kind is EventKind.PLAN]
+    assert asked and asked[0].detail["reason"] == "maintenance"

@@ -51,6 +51,22 @@ def startable(tick: Tick, plan: TransitionPlan) -> list[int]:
     ]
 
 
+def stuck(tick: Tick, plan: TransitionPlan) -> bool:
+    """Nothing the plan waits for can happen any more: no block's turn has come and no
+    effect or automatic step it expects is enabled.  A person's step that was under way
+    when the plan was made can end before its block is taken; the plan would wait for it
+    for ever (recovery and maintenance plans, which have no deviation check, use this)."""
+    if startable(tick, plan) or not plan.expected():
+        return False
+    current = tick.current()
+    unavailable = tick.state.unavailable
+    for name in plan.expected():
+        owner = tick.index.owner.get(name)
+        if owner in unavailable or tick.index.transition(name).guard(current):
+            return False  # it may yet happen (a resource may answer again)
+    return True
+
+
 def take(tick: Tick, plan: TransitionPlan, k: int, *, supervised: bool) -> bool:
     """Take block k's transition if the model (and, `supervised`, the supervisor) allow it
     now; whether it was taken.  A guard that does not hold yet is waited for quietly."""

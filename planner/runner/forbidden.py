@@ -22,11 +22,10 @@ from __future__ import annotations
 
 from planner.expressions import TRUE
 from planner.model import TransitionKind
-from planner.planning import PlanQuery
+from planner.planning import PlanQuery, PlanStatus
 from planner.runner.automatic import violates_specifications
-from planner.runner.following import follow, startable, take
+from planner.runner.following import follow, startable, stuck, take
 from planner.runner.queries import announce, ask, disabled
-from planner.runner.state import TransitionPlan
 from planner.runner.tick import Tick
 from planner.runner.vocabulary import EventKind, PlanLevel, RecoveryFlag, ReplanReason
 
@@ -95,22 +94,6 @@ def recover(tick: Tick) -> None:
         take(tick, plan, k, supervised=False)
 
 
-def stuck(tick: Tick, plan: TransitionPlan) -> bool:
-    """Nothing the recovery plan waits for can happen any more: no block's turn has come and
-    no effect or automatic step it expects is enabled.  A person's step that was under way
-    when the state became forbidden ends before its block is taken, and the plan would wait
-    for it for ever."""
-    if startable(tick, plan) or not plan.expected():
-        return False
-    current = tick.current()
-    unavailable = tick.state.unavailable
-    for name in plan.expected():
-        owner = tick.index.owner.get(name)
-        if owner in unavailable or tick.index.transition(name).guard(current):
-            return False  # it may yet happen (a resource may answer again)
-    return True
-
-
 def holding(tick: Tick) -> bool:
     """Recovery found no plan here: plan again only once something changed (the state, or
     what planning may use), never tick after tick.  A change also gives the rejected steps
@@ -142,7 +125,10 @@ def plan_recovery(tick: Tick, violated: list[str]) -> None:
     announce(tick, PlanLevel.TRANSITIONS, flags, ReplanReason.FORBIDDEN_STATE, result, millis)
     if not result.found:
         state.recovery_held = (tick.current(), disabled(tick))
-        why = "every way out was rejected" if state.rejected else "no way out exists"
+        if result.status is PlanStatus.OVER_BUDGET:
+            why = "no recovery plan within the planning budget"
+        else:
+            why = "every way out was rejected" if state.rejected else "no way out exists"
         tick.emit(
             EventKind.ERROR,
             "no recovery plan",

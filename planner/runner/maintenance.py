@@ -9,6 +9,7 @@ be tried again, if it has retries left.
 
     no maintenance --intentions in error, a plan found--> following it
     its turn comes --> instruction shown --> the operator reports it done --> next step
+    what it waits for can no longer happen --> made again from here
     every step done --> the operation goes back to initial (within its retries)
     no intention in error any more --> the plan is dropped
 """
@@ -17,7 +18,7 @@ from __future__ import annotations
 
 from planner.model import TransitionKind
 from planner.partial_order import blocks
-from planner.runner.following import startable, take
+from planner.runner.following import startable, stuck, take
 from planner.runner.queries import announce, ask, recovery_flags, transition_query
 from planner.runner.state import TransitionPlan
 from planner.runner.tick import Tick
@@ -72,6 +73,14 @@ def follow_maintenance_plan(tick: Tick) -> None:
     if not state.intentions_in(IntentionState.ERROR):
         state.maintenance = None
         return
+    if stuck(tick, plan):  # made again from here (it asks the planner: run it in `attempt`)
+        waits = ", ".join(sorted(plan.expected()))
+        tick.emit(EventKind.BLOCKED, "maintenance plan", why=f"{waits} can no longer happen")
+        state.maintenance = None
+        plan_maintenance(tick)
+        if state.maintenance is None:
+            return
+        plan = state.maintenance
     for k in startable(tick, plan):
         name = plan.blocks[k].transition
         if tick.index.kind_of(name) is not TransitionKind.MAINTENANCE:

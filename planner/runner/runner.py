@@ -55,7 +55,7 @@ def run_tick(tick: Tick, inputs: Inputs) -> list[Reply]:
         intentions.start_and_finish(tick)  # 4.
         attempt(tick, operations.follow_operation_plan)  # 5. the operation planner
         attempt(tick, transitions.follow_transition_plan)  # 6. the transition planner
-        maintenance.follow_maintenance_plan(tick)  # after errors: the operator's steps
+        attempt(tick, maintenance.follow_maintenance_plan)  # after errors: people's steps
     effects.monitor_effects(tick)  # 7. effect time-outs
     if background.due(tick):
         attempt(tick, background.background_check)  # errors that can be completed again
