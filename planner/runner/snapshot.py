@@ -244,11 +244,17 @@ class _Loader:
             halted=strings["halted"],
             intention_causes=self.causes(data["intention_causes"], "intention"),
             operation_causes=self.causes(data["operation_causes"], "operation"),
-            blamed_on_timeouts=self.blamed(data["blamed_on_timeouts"]),
-            resumable=self.names(data["resumable"], "operation", "resumable"),
-            reminded=self.counts(data["reminded"], "transition", "reminded"),
-            announced=tuple(self.steps(data["announced"], "specification", "announced")),
+            **self.added_fields(data),
         )
+
+    def added_fields(self, data: Mapping[str, Any]) -> dict[str, Any]:
+        """Fields added to format 1 later: late effects, reminders, announced violations."""
+        return {
+            "blamed_on_timeouts": self.blamed(data["blamed_on_timeouts"]),
+            "resumable": self.names(data["resumable"], "operation", "resumable"),
+            "reminded": self.counts(data["reminded"], "transition", "reminded"),
+            "announced": tuple(self.steps(data["announced"], "specification", "announced")),
+        }
 
     def counts(self, raw: Any, what: str, where: str) -> dict[str, int]:
         counts = self.mapping(raw, what, where)
