@@ -15,7 +15,8 @@ import pytest
 
 from app.scenario import Planners, Scenario, load_scenario, play
 from planner.operation_planner import OperationPlanner
-from planner.runner import Event, EventKind, RunnerState
+from planner.planning import PlanResult
+from planner.runner import Event, EventKind, PlanLevel, RunnerState
 from planner.station import Station, load_station
 from planner.transition_planner import TransitionPlanner
 
@@ -198,3 +199,50 @@ def test_a_recovery_plan_that_waits_for_what_can_no_longer_happen_is_made_again(
     after = [e for e in events if e.time >= stuck[0].time and e.kind is EventKind.PLAN]
     assert after[0].subject == "TP w/MT" and after[0].detail["status"] == "found"
     assert events[-1].kind is EventKind.DONE
+
+
+@pytest.mark.parametrize(
+    ("name", "operation"),
+    [("endless_camera_misses", "locate_tool_r"), ("endless_torque_nok", "tighten_bp")],
+)
+def test_a_device_that_always_fails_is_tried_a_bounded_number_of_times(
+    plays: dict[str, tuple[Scenario, list[Event]]], name: str, operation: str
+) -> None:
+    """Each failed attempt counts ("a different effect than planned" too): the operations go
+    to error with their count, and the planners are asked a bounded number of times (53 and
+    26 plans before, for as long as the run lasted)."""
+    _, events = plays[name]
+    errors = [
+        e
+        for e in events
+        if e.kind is EventKind.OPERATION and e.detail["after"] == "error" and operation in e.subject
+    ]
+    assert errors and all("failed attempts" in e.detail["why"] for e in errors)
+    assert len([e for e in events if e.kind is EventKind.PLAN]) <= 15
+
+
+def test_a_stop_asks_the_planners_nothing_while_nothing_changes(
+    demo: tuple[Station, Planners],
+) -> None:
+    """The background check looks again only when what its queries read has changed: a
+    station that has stopped does not ask the same question every second (unannounced
+    queries included, which the event log does not show)."""
+    station, planners = demo
+    path = next(p for p in FAULTS if p.stem == "endless_camera_misses")
+    scenario = load_scenario(path.read_text(), str(path), station)
+    asked: list[tuple[float, str]] = []
+
+    class Count:
+        def asked(self, now: float, level: PlanLevel, purpose: str) -> None:
+            asked.append((now, purpose))
+
+        def answered(self, result: PlanResult, millis: float | None) -> None:
+            pass
+
+        def announced(self) -> None:
+            pass
+
+    events = list(play(station, scenario, planners, observer=Count()))
+    assert events[-1].kind is EventKind.STOPPED
+    last_plan = max(e.time for e in events if e.kind is EventKind.PLAN)
+    assert [a for a in asked if a[0] > last_plan + 2] == []

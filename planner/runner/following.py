@@ -51,11 +51,12 @@ def startable(tick: Tick, plan: TransitionPlan) -> list[int]:
     ]
 
 
-def stuck(tick: Tick, plan: TransitionPlan) -> bool:
+def stuck(tick: Tick, plan: TransitionPlan, what: str) -> bool:
     """Nothing the plan waits for can happen any more: no block's turn has come and no
     effect or automatic step it expects is enabled.  A person's step that was under way
     when the plan was made can end before its block is taken; the plan would wait for it
-    for ever (recovery and maintenance plans, which have no deviation check, use this)."""
+    for ever.  Recovery and maintenance plans, which have no deviation check, use this to
+    be made again; a stuck plan is said (a `blocked` event about `what`)."""
     if startable(tick, plan) or not plan.expected():
         return False
     current = tick.current()
@@ -64,6 +65,8 @@ def stuck(tick: Tick, plan: TransitionPlan) -> bool:
         owner = tick.index.owner.get(name)
         if owner in unavailable or tick.index.transition(name).guard(current):
             return False  # it may yet happen (a resource may answer again)
+    waits = ", ".join(sorted(plan.expected()))
+    tick.emit(EventKind.BLOCKED, what, why=f"{waits} can no longer happen")
     return True
 
 

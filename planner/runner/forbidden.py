@@ -22,10 +22,10 @@ from __future__ import annotations
 
 from planner.expressions import TRUE
 from planner.model import TransitionKind
-from planner.planning import PlanQuery, PlanStatus
+from planner.planning import PlanQuery
 from planner.runner.automatic import violates_specifications
 from planner.runner.following import follow, startable, stuck, take
-from planner.runner.queries import announce, ask, disabled
+from planner.runner.queries import announce, ask, disabled, no_plan_because
 from planner.runner.tick import Tick
 from planner.runner.vocabulary import EventKind, PlanLevel, RecoveryFlag, ReplanReason
 
@@ -67,9 +67,7 @@ def recover(tick: Tick) -> None:
         tick.replan_operations(ReplanReason.RECOVERED)
         tick.replan_transitions(ReplanReason.RECOVERED)
         return
-    if stuck(tick, plan):  # planned again from here; approvals given so far are void
-        waits = ", ".join(sorted(plan.expected()))
-        tick.emit(EventKind.BLOCKED, "recovery plan", why=f"{waits} can no longer happen")
+    if stuck(tick, plan, "recovery plan"):  # planned again; approvals given so far are void
         state.recovery = None
         plan_recovery(tick, violated)
         if state.recovery is None:
@@ -125,10 +123,8 @@ def plan_recovery(tick: Tick, violated: list[str]) -> None:
     announce(tick, PlanLevel.TRANSITIONS, flags, ReplanReason.FORBIDDEN_STATE, result, millis)
     if not result.found:
         state.recovery_held = (tick.current(), disabled(tick))
-        if result.status is PlanStatus.OVER_BUDGET:
-            why = "no recovery plan within the planning budget"
-        else:
-            why = "every way out was rejected" if state.rejected else "no way out exists"
+        usual = "every way out was rejected" if state.rejected else "no way out exists"
+        why = no_plan_because(result, usual)
         tick.emit(
             EventKind.ERROR,
             "no recovery plan",

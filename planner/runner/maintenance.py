@@ -73,9 +73,7 @@ def follow_maintenance_plan(tick: Tick) -> None:
     if not state.intentions_in(IntentionState.ERROR):
         state.maintenance = None
         return
-    if stuck(tick, plan):  # made again from here (it asks the planner: run it in `attempt`)
-        waits = ", ".join(sorted(plan.expected()))
-        tick.emit(EventKind.BLOCKED, "maintenance plan", why=f"{waits} can no longer happen")
+    if stuck(tick, plan, "maintenance plan"):  # made again (it asks: run it in `attempt`)
         state.maintenance = None
         plan_maintenance(tick)
         if state.maintenance is None:

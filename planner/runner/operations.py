@@ -18,7 +18,7 @@ from planner.expressions import Value
 from planner.partial_order import independent_operations
 from planner.planning import PlanStatus
 from planner.runner.maintenance import plan_maintenance
-from planner.runner.queries import announce, ask
+from planner.runner.queries import announce, ask, no_plan_because
 from planner.runner.retries import forget_failures
 from planner.runner.state import OperationPlan
 from planner.runner.tick import Tick
@@ -166,7 +166,7 @@ def plan_operations(tick: Tick, active: list[str], reason: ReplanReason) -> None
     state.operation_plan = None
     if result.status is PlanStatus.OVER_BUDGET:  # asking each alone would take as long
         for intention in intentions:
-            why = "no operation plan within the planning budget"
+            why = no_plan_because(result, "")
             tick.set_intention(intention.name, IntentionState.ERROR, why)
         state.replan_operations = None
         return

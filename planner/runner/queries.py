@@ -49,6 +49,14 @@ def ask(
     return answer.result, answer.millis
 
 
+def no_plan_because(result: PlanResult, usual: str) -> str:
+    """Why a query found no plan, in words: `usual`, unless it ran past its planning
+    budget (then nothing was proved about the goal, only that planning was too slow)."""
+    if result.status is PlanStatus.OVER_BUDGET:
+        return "no plan within the planning budget"
+    return usual
+
+
 def announce(
     tick: Tick,
     level: PlanLevel,

@@ -15,7 +15,13 @@ from __future__ import annotations
 from planner.expressions import Expr, conjunction
 from planner.planning import PlanStatus
 from planner.runner.following import follow, plan_reaches, startable, take
-from planner.runner.queries import announce, ask, recovery_flags, transition_query
+from planner.runner.queries import (
+    announce,
+    ask,
+    no_plan_because,
+    recovery_flags,
+    transition_query,
+)
 from planner.runner.restart import follow_reset_plan
 from planner.runner.retries import count_failure, fail_operation
 from planner.runner.tick import Tick
@@ -61,8 +67,8 @@ def plan_transitions(tick: Tick, executing: list[str], goal: Expr, reason: Repla
         state.transition_plan = follow(tick, goal, result)
         return True
     state.transition_plan = None
-    if result.status is PlanStatus.OVER_BUDGET:
-        fail_operations(tick, executing, "no plan within the planning budget")
+    if result.status is PlanStatus.OVER_BUDGET:  # asking each alone would take as long
+        fail_operations(tick, executing, no_plan_because(result, ""))
         state.replan_operations = ReplanReason.ERROR
         return False
     fail_operations(tick, which_operations_fail(tick, executing) or executing)
