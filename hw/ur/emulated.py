@@ -1,0 +1,49 @@
+"""Starting emulated UR controllers: a free loopback address each, since the ports are fixed.
+
+ur_rtde always connects to 30004, 29999 and 30003, so every emulated robot needs its own
+address (all of 127.0.0.0/8 is loopback on Linux).  `free_host` finds one whose three ports
+nobody holds (a stale emulator from an earlier run must not break the next); `emulate` starts
+`python -m hw.ur.controller` there and stops it when the block ends, also on failure.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import socket
+from collections.abc import Iterable, Iterator
+
+from hw.emulation.process import EmulatorProcess, start
+
+CLIENT_PORTS = (30004, 29999, 30003)
+
+
+def port_free(host: str, port: int) -> bool:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            probe.bind((host, port))
+        except OSError:
+            return False
+    return True
+
+
+def free_host(candidates: Iterable[str]) -> str:
+    """The first address whose client ports are all free."""
+    for host in candidates:
+        if all(port_free(host, port) for port in CLIENT_PORTS):
+            return host
+    raise RuntimeError("no loopback address with free UR ports among the candidates")
+
+
+def host_range(first: int, last: int, prefix: str = "127.0.1.") -> list[str]:
+    return [f"{prefix}{n}" for n in range(first, last + 1)]
+
+
+@contextlib.contextmanager
+def emulate(host: str, *args: str, timeout: float = 15.0) -> Iterator[EmulatorProcess]:
+    """A running emulator on `host` for the duration of the block."""
+    emulator = start("hw.ur.controller", "--host", host, *args, timeout=timeout)
+    try:
+        yield emulator
+    finally:
+        emulator.stop()

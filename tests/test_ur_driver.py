@@ -1,0 +1,203 @@
+"""The station's UR driver against the emulator: readings, moves, faults, restarts, clean close.
+
+One emulator and one driver serve the whole module (starting them costs about a second); each
+fault test ends its fault and waits until the driver has recovered, so the next one starts
+from a healthy robot.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import signal
+import time
+from collections.abc import Callable, Iterator
+from typing import Any
+
+import pytest
+
+from hw.emulation.control import control
+from hw.ur.driver import URDriver
+from hw.ur.emulated import emulate, free_host, host_range
+
+HOSTS = host_range(121, 250)
+JOINTS = [0.1, -1.5, 1.4, -1.2, -1.5, 0.2]
+HEARTBEAT = 0.5
+
+
+def until(condition: Callable[[], bool], timeout: float = 5.0) -> bool:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if condition():
+            return True
+        time.sleep(0.01)
+    return condition()
+
+
+class Station:
+    def __init__(self, host: str, control_port: int, driver: URDriver) -> None:
+        self.host, self.control_port, self.driver = host, control_port, driver
+
+    def op(self, **request: Any) -> dict[str, Any]:
+        return control(self.host, self.control_port, request)
+
+    def q(self) -> list[float]:
+        reading = self.driver.latest()
+        assert reading is not None
+        return list(reading.q)
+
+    def recovered(self, timeout: float = 10.0) -> bool:
+        return until(lambda: self.driver.available, timeout)
+
+
+@pytest.fixture(scope="module")
+def station() -> Iterator[Station]:
+    host = free_host(HOSTS)
+    with emulate(host, "--joints", ",".join(map(str, JOINTS))) as emulator:
+        driver = URDriver(host, name="r1", heartbeat_timeout=HEARTBEAT, startup_timeout=8.0)
+        driver.start()
+        try:
+            yield Station(host, emulator.ports["control"], driver)
+        finally:
+            driver.close()
+
+
+@pytest.fixture
+def healthy(station: Station) -> Station:
+    assert station.recovered(), station.driver.status()
+    return station
+
+
+def test_start_up_powers_the_robot_and_reads(healthy: Station) -> None:
+    reading = healthy.driver.latest()
+    assert reading is not None
+    assert reading.q == pytest.approx(JOINTS)
+    assert reading.robot_mode == 7 and reading.runtime_state == 2 and reading.running
+    assert not reading.protective_stop and reading.steady
+    status = healthy.driver.status()
+    assert status.connected and status.error == ""
+    assert status.last_data is not None and time.monotonic() - status.last_data < 0.2
+
+
+def test_move_j_reaches_the_target_at_limited_speed(healthy: Station) -> None:
+    target = list(JOINTS)
+    target[0] += 0.3
+    started = time.monotonic()
+    healthy.driver.move_j(target, 1.0, 4.0)
+    assert until(lambda: healthy.q() != pytest.approx(JOINTS), 1.0)
+    moved = time.monotonic() - started
+    assert until(lambda: healthy.q() == pytest.approx(target) and healthy.driver.latest().steady)
+    took = time.monotonic() - started
+    assert moved < 0.2  # command to motion
+    assert took >= 0.3 / 1.0 + 1.0 / 4.0 - 0.05
+    healthy.driver.move_j(JOINTS, 1.0, 4.0)
+    assert until(lambda: healthy.q() == pytest.approx(JOINTS))
+
+
+def test_stop_j_and_set_tool(healthy: Station) -> None:
+    healthy.driver.set_tool([0.0, 0.0, 0.2, 0.0, 0.0, 0.0], 2.5)
+    assert until(lambda: healthy.op(op="state")["payload"] == 2.5)
+    assert healthy.op(op="state")["tcp"] == [0.0, 0.0, 0.2, 0.0, 0.0, 0.0]
+    target = list(JOINTS)
+    target[2] -= 1.0
+    healthy.driver.move_j(target, 0.5, 2.0)
+    time.sleep(0.4)
+    healthy.driver.stop_j()
+    assert until(lambda: healthy.driver.latest().steady, 2.0)
+    assert JOINTS[2] - 0.9 < healthy.q()[2] < JOINTS[2]
+    healthy.driver.move_j(JOINTS, 1.0, 4.0)
+    assert until(lambda: healthy.q() == pytest.approx(JOINTS))
+
+
+@pytest.mark.parametrize(
+    ("fault", "end"),
+    [
+        ({"op": "network", "down": True, "mode": "silent"}, {"op": "network", "down": False}),
+        ({"op": "network", "down": True, "mode": "refuse"}, {"op": "network", "down": False}),
+        ({"op": "freeze", "on": True}, {"op": "freeze", "on": False}),
+    ],
+    ids=["silent", "refuse", "freeze"],
+)
+def test_lost_data_makes_the_robot_unavailable_and_restarts(
+    healthy: Station, fault: dict[str, Any], end: dict[str, Any]
+) -> None:
+    restarts = healthy.driver.status().restarts
+    healthy.op(**fault)
+    started = time.monotonic()
+    assert until(lambda: not healthy.driver.available, 2.0)
+    assert time.monotonic() - started < HEARTBEAT + 0.3
+    assert not healthy.driver.status().connected
+    assert healthy.driver.status().error
+    assert until(lambda: healthy.driver.status().restarts > restarts, 3.0)
+    healthy.op(**end)
+    assert healthy.recovered(), healthy.driver.status()
+
+
+def test_protective_stop_shows_and_commands_fail_until_unlocked(healthy: Station) -> None:
+    healthy.op(op="protective_stop")
+    assert until(lambda: healthy.driver.latest().protective_stop)
+    target = list(JOINTS)
+    target[0] += 0.2
+    healthy.driver.move_j(target, 1.0, 4.0)
+    assert until(lambda: "refused" in healthy.driver.status().error)
+    healthy.op(op="protective_stop", on=False)
+    # the driver resumes the paused control script by itself once the stop is cleared
+    assert until(lambda: healthy.driver.latest().running, 3.0)
+    healthy.driver.stop_j()
+    healthy.driver.move_j(JOINTS, 1.0, 4.0)
+    assert until(lambda: healthy.q() == pytest.approx(JOINTS) and healthy.driver.latest().steady)
+
+
+def test_a_stalled_move_never_finishes(healthy: Station) -> None:
+    healthy.op(op="stall", on=True)
+    target = list(JOINTS)
+    target[0] += 0.4
+    healthy.driver.move_j(target, 1.0, 4.0)
+    time.sleep(0.6)
+    assert healthy.driver.latest().steady
+    assert healthy.q()[0] < target[0] - 0.1
+    assert healthy.op(op="state")["goal"] == pytest.approx(target)
+    healthy.op(op="stall", on=False)
+    assert until(lambda: healthy.q() == pytest.approx(target))
+    healthy.driver.move_j(JOINTS, 1.0, 4.0)
+    assert until(lambda: healthy.q() == pytest.approx(JOINTS))
+
+
+def test_a_push_shows_and_nonsense_is_not_trusted(healthy: Station) -> None:
+    assert until(lambda: healthy.op(op="state")["goal"] is None)  # no move left to finish
+    healthy.op(op="push", offset=[0.05, 0, 0, 0, 0, 0])
+    assert until(lambda: healthy.q()[0] == pytest.approx(JOINTS[0] + 0.05))
+    healthy.op(op="push", offset=[100.0, 0, 0, 0, 0, 0])  # no UR joint turns that far
+    assert until(lambda: not healthy.driver.available, 1.0)
+    assert "nonsense" in healthy.driver.status().error
+    assert healthy.q()[0] == pytest.approx(JOINTS[0] + 0.05)  # the last trusted reading
+    healthy.op(op="jog", joints=JOINTS)
+    assert healthy.recovered()
+    assert healthy.q() == pytest.approx(JOINTS)
+
+
+def test_a_killed_child_is_restarted(healthy: Station) -> None:
+    restarts = healthy.driver.status().restarts
+    child = healthy.driver._child
+    assert child is not None and child.pid is not None
+    os.kill(child.pid, signal.SIGKILL)
+    assert until(lambda: not healthy.driver.available, 2.0)
+    assert healthy.recovered(), healthy.driver.status()
+    assert healthy.driver.status().restarts == restarts + 1
+
+
+def test_no_robot_is_unavailable_and_close_leaves_no_process() -> None:
+    driver = URDriver(
+        free_host(HOSTS), name="nobody", heartbeat_timeout=HEARTBEAT, startup_timeout=3.0
+    )
+    driver.start()
+    try:
+        assert until(lambda: driver.status().restarts >= 1, 5.0)
+        assert not driver.available and driver.latest() is None
+        assert driver.status().error
+        child = driver._child
+    finally:
+        driver.close()
+    assert not [p for p in multiprocessing.active_children() if p.name.endswith("nobody")]
+    if child is not None:
+        assert not child.is_alive()
