@@ -1,0 +1,141 @@
+"""A robot's tool-changer connector (`r1_tc`, `r2_tc`): locks onto a tool and lets it go
+(the model's `lock` and `unlock`, seed 003 Table III).
+
+Commands are levels: lock = `lock` and not `unlock`; unlock = `unlock` and not `lock`; any
+other combination keeps what it does.  `lock` seconds after a lock command the connected
+sensor rises and not_connected falls together; `unlock` seconds after an unlock command
+they swap back.  Faults: a lock that never completes, a lock that ends with the failure bit
+(which blocks locking until a reset: the `reset` coil rising, or the control channel's
+reset), and any sensor stuck at a value (`DeviceLogic.stick`).
+"""
+
+from __future__ import annotations
+
+import enum
+from collections.abc import Mapping
+from typing import Any, ClassVar
+
+from hw.modbus.logic import DeviceLogic, Shots
+from hw.modbus.registers import Kind, Point, Register, RegisterMap, Table
+
+STATUS_BITS = ("connected", "not_connected", "failure")
+
+CONNECTOR = RegisterMap(
+    "connector",
+    "tool-changer connector: lock and unlock commands, connection sensors, failure",
+    (
+        Register("lock", Point(Table.COIL, 0), Kind.BOOL, "command: lock onto the tool", False),
+        Register("unlock", Point(Table.COIL, 1), Kind.BOOL, "command: let the tool go", True),
+        Register(
+            "reset", Point(Table.COIL, 2), Kind.BOOL, "rising edge: clear the failure bit", False
+        ),
+        Register(
+            "connected", Point(Table.DISCRETE_INPUT, 0), Kind.BOOL, "a tool is locked on", False
+        ),
+        Register(
+            "not_connected", Point(Table.DISCRETE_INPUT, 1), Kind.BOOL, "no tool locked on", True
+        ),
+        Register(
+            "failure",
+            Point(Table.DISCRETE_INPUT, 2),
+            Kind.BOOL,
+            "a lock failed; locking is blocked until a reset",
+            False,
+        ),
+        Register(
+            "heartbeat",
+            Point(Table.INPUT_REGISTER, 0),
+            Kind.COUNTER,
+            "counts up every 100 ms while the device's logic runs",
+        ),
+        Register(
+            "status",
+            Point(Table.INPUT_REGISTER, 1),
+            Kind.BITS,
+            "the discrete inputs as one word",
+            2,
+            codes=STATUS_BITS,
+        ),
+    ),
+)
+
+
+class Phase(enum.Enum):
+    UNLOCKED = "unlocked"
+    LOCKING = "locking"
+    LOCKED = "locked"
+    UNLOCKING = "unlocking"
+
+
+class LockFault(enum.Enum):
+    NEVER = "never"  # the lock never completes: no sensor changes, no failure
+    FAILURE = "failure"  # the lock ends with the failure bit, still not connected
+
+
+class Connector(DeviceLogic):
+    register_map = CONNECTOR
+    timing_defaults: ClassVar[Mapping[str, float]] = {"lock": 1.0, "unlock": 1.0}
+
+    def __init__(self, now: float, timing: Mapping[str, float] | None = None) -> None:
+        super().__init__(now, timing)
+        self.phase = Phase.UNLOCKED
+        self.since = now
+        self.lock_fault = Shots()
+        self.lock_fault_mode = LockFault.NEVER
+        self.doomed: LockFault | None = None  # how the current lock attempt ends, if it fails
+        self._reset_coil = False
+
+    def advance(self, now: float) -> bool:
+        if self["reset"] and not self._reset_coil and self.truth("failure"):
+            self.flag("failure", False)
+        self._reset_coil = bool(self["reset"])
+        lock = bool(self["lock"]) and not self["unlock"]
+        unlock = bool(self["unlock"]) and not self["lock"]
+        if self.phase is Phase.UNLOCKED and lock and not self.truth("failure"):
+            self._enter(Phase.LOCKING, now)
+            self.doomed = self.lock_fault_mode if self.lock_fault.take() else None
+        elif self.phase is Phase.LOCKING and unlock:
+            self._enter(Phase.UNLOCKED, now)  # the sensors never changed
+        elif self.phase is Phase.LOCKING and now >= self.since + self.timing["lock"]:
+            due = self.since + self.timing["lock"]
+            if self.doomed is LockFault.NEVER:
+                return False
+            if self.doomed is LockFault.FAILURE:
+                self._enter(Phase.UNLOCKED, due)
+                self.flag("failure", True)
+            else:
+                self._enter(Phase.LOCKED, due)
+                self.flag("connected", True)
+                self.flag("not_connected", False)
+        elif self.phase is Phase.LOCKED and unlock:
+            self._enter(Phase.UNLOCKING, now)
+        elif self.phase is Phase.UNLOCKING and lock:
+            self._enter(Phase.LOCKED, now)  # still locked on
+        elif self.phase is Phase.UNLOCKING and now >= self.since + self.timing["unlock"]:
+            self._enter(Phase.UNLOCKED, self.since + self.timing["unlock"])
+            self.flag("connected", False)
+            self.flag("not_connected", True)
+        else:
+            return False
+        return True
+
+    def _enter(self, phase: Phase, at: float) -> None:
+        self.phase, self.since = phase, at
+
+    def fail_locks(self, shots: Shots, mode: LockFault) -> None:
+        """The next locks (or all) fail as `mode` says."""
+        self.lock_fault, self.lock_fault_mode = shots, mode
+
+    def reset(self) -> None:
+        """Clears the faults and the failure bit; a lock that hung goes on."""
+        super().reset()
+        self.lock_fault = Shots()
+        self.doomed = None
+        self.flag("failure", False)
+
+    def faults(self) -> dict[str, Any]:
+        return {
+            **super().faults(),
+            "lock_fails": {**self.lock_fault.as_json(), "mode": self.lock_fault_mode.value},
+            "phase": self.phase.value,
+        }

@@ -1,0 +1,150 @@
+"""The smart nutrunner `nr`: spins up when told to run, tightens to its target torque (or
+reports NOK), and stops when told to idle (the model's `run_nut`, seed 003 Tables I, II).
+
+Commands are levels: run = `run_forward` and not `set_idle`; idle = `set_idle` and not
+`run_forward`; any other combination keeps what it does.  After run: `spin_up` seconds later
+is_idle falls and is_running rises, the torque climbs for `tighten` seconds, then
+torque_reached rises, or nok when the NOK fault strikes (torque stays at 60 % of target).
+After idle: `stop` seconds later is_running, torque_reached and nok fall and is_idle rises.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from collections.abc import Mapping
+from typing import Any, ClassVar
+
+from hw.modbus.logic import DeviceLogic, Shots
+from hw.modbus.registers import Kind, Point, Register, RegisterMap, Table
+
+STATUS_BITS = ("is_idle", "is_running", "torque_reached", "nok")
+NOK_TORQUE = 0.6  # share of the target torque where a NOK tightening stops
+
+NUTRUNNER = RegisterMap(
+    "nutrunner",
+    "smart nutrunner: run and idle commands, tightening result, torque",
+    (
+        Register("set_idle", Point(Table.COIL, 0), Kind.BOOL, "command: stop and idle", True),
+        Register("run_forward", Point(Table.COIL, 1), Kind.BOOL, "command: run (tighten)", False),
+        Register("is_idle", Point(Table.DISCRETE_INPUT, 0), Kind.BOOL, "idle", True),
+        Register("is_running", Point(Table.DISCRETE_INPUT, 1), Kind.BOOL, "spinning", False),
+        Register(
+            "torque_reached",
+            Point(Table.DISCRETE_INPUT, 2),
+            Kind.BOOL,
+            "the tightening reached the target torque",
+            False,
+        ),
+        Register(
+            "nok",
+            Point(Table.DISCRETE_INPUT, 3),
+            Kind.BOOL,
+            "the tightening ended without reaching the target torque",
+            False,
+        ),
+        Register(
+            "target_torque",
+            Point(Table.HOLDING_REGISTER, 0),
+            Kind.UNSIGNED,
+            "torque to tighten to",
+            25.0,
+            scale=0.1,
+            unit="Nm",
+            low=0.0,
+            high=100.0,
+        ),
+        Register(
+            "heartbeat",
+            Point(Table.INPUT_REGISTER, 0),
+            Kind.COUNTER,
+            "counts up every 100 ms while the device's logic runs",
+        ),
+        Register(
+            "status",
+            Point(Table.INPUT_REGISTER, 1),
+            Kind.BITS,
+            "the discrete inputs as one word",
+            1,
+            codes=STATUS_BITS,
+        ),
+        Register(
+            "torque",
+            Point(Table.INPUT_REGISTER, 2),
+            Kind.UNSIGNED,
+            "measured torque",
+            0.0,
+            scale=0.1,
+            unit="Nm",
+            low=0.0,
+            high=100.0,
+        ),
+    ),
+)
+
+
+class Phase(enum.Enum):
+    IDLE = "idle"
+    STARTING = "starting"  # told to run, not spinning yet
+    TIGHTENING = "tightening"
+    DONE = "done"  # torque reached or NOK, still spinning
+    STOPPING = "stopping"
+
+
+class Nutrunner(DeviceLogic):
+    register_map = NUTRUNNER
+    timing_defaults: ClassVar[Mapping[str, float]] = {"spin_up": 0.5, "tighten": 2.0, "stop": 0.5}
+
+    def __init__(self, now: float, timing: Mapping[str, float] | None = None) -> None:
+        super().__init__(now, timing)
+        self.phase = Phase.IDLE
+        self.since = now  # when the phase began
+        self.nok_fault = Shots()
+
+    def advance(self, now: float) -> bool:
+        run = bool(self["run_forward"]) and not self["set_idle"]
+        idle = bool(self["set_idle"]) and not self["run_forward"]
+        due = self.since + self.timing[_DELAY.get(self.phase, "stop")]
+        if self.phase is Phase.IDLE and run:
+            self._enter(Phase.STARTING, now)
+        elif self.phase is Phase.STARTING and idle:
+            self._enter(Phase.IDLE, now)  # it never spun up
+        elif self.phase is Phase.STARTING and now >= due:
+            self._enter(Phase.TIGHTENING, due)
+            self.flag("is_idle", False)
+            self.flag("is_running", True)
+        elif self.phase in (Phase.TIGHTENING, Phase.DONE) and idle:
+            self._enter(Phase.STOPPING, now)
+        elif self.phase is Phase.TIGHTENING and now >= due:
+            self._enter(Phase.DONE, due)
+            failed = self.nok_fault.take()
+            self._torque(NOK_TORQUE if failed else 1.0)
+            self.flag("nok" if failed else "torque_reached", True)
+        elif self.phase is Phase.STOPPING and now >= due:
+            self._enter(Phase.IDLE, due)
+            self._torque(0.0)
+            for name, on in zip(STATUS_BITS, (True, False, False, False), strict=True):
+                self.flag(name, on)
+        else:
+            if self.phase is Phase.TIGHTENING:
+                tighten = self.timing["tighten"]
+                self._torque(min(1.0, (now - self.since) / tighten) if tighten else 1.0)
+            return False
+        return True
+
+    def _enter(self, phase: Phase, at: float) -> None:
+        self.phase, self.since = phase, at
+
+    def _torque(self, share: float) -> None:
+        target = self["target_torque"]
+        self.put("torque", min(0xFFFF, math.floor(target * share)))
+
+    def reset(self) -> None:
+        super().reset()
+        self.nok_fault = Shots()
+
+    def faults(self) -> dict[str, Any]:
+        return {**super().faults(), "nok": self.nok_fault.as_json(), "phase": self.phase.value}
+
+
+_DELAY = {Phase.STARTING: "spin_up", Phase.TIGHTENING: "tighten", Phase.STOPPING: "stop"}
