@@ -33,7 +33,8 @@ from app.station_cycle import StationCycle
 from app.station_view import ActiveModel, StationView
 from app.store.audit import AuditEntry
 from app.store.db import Store
-from hw.faults import Fault
+from hw.devices import Devices, Restorable
+from hw.faults import Fault, FaultInjection
 from hw.sim import SimulatedWorld
 from planner.expressions import Value
 from planner.runner import (
@@ -49,12 +50,31 @@ from planner.runner import (
     snapshot,
 )
 from planner.runner.carry_over import carry_over
+from planner.station import Station
 
 log = logging.getLogger(__name__)
 
-# the effect a person's "Done" on a task card performs (the watch reports the confirmed card)
-CONFIRM_EFFECT = "operator.confirm"
 RECENT_EVENTS = 200
+
+# The station's devices for a model, from its start values; with a scenario's delays when an
+# experiment is played (simulated devices only).
+DeviceSetup = Callable[[Station, Mapping[str, Value], Scenario | None], Devices]
+
+
+def simulated_devices(
+    station: Station, start: Mapping[str, Value], scenario: Scenario | None = None
+) -> Devices:
+    """The simulated world; a tap on a watch is the person's own (never played by it)."""
+    manual = frozenset(watch.confirm for _, watch in station.watches)
+    if scenario is None:
+        return SimulatedWorld(station, start=start, manual=manual)
+    return SimulatedWorld(
+        station,
+        delays=scenario.delays,
+        default_delay=scenario.default_delay,
+        start=start,
+        manual=manual,
+    )
 
 
 class StationError(Exception):
@@ -93,8 +113,10 @@ class LiveStation:
         wall: Callable[[], float] = time.time,
         planning_worker: bool = True,
         planning_delay: float = 0.0,
+        devices: DeviceSetup | None = None,
     ) -> None:
         self.store = store
+        self.setup = devices or simulated_devices
         self.name = name
         self.simulated = simulated
         self.period = period
@@ -120,13 +142,13 @@ class LiveStation:
         runner = self._runner(model, self.config)
         if saved.snapshot is None:
             state = runner.initial(now)
-            self.world = self._world(state.values)
+            self.devices = self.setup(model.station, state.values, None)
         else:
             state = snapshot.load(runner, saved.snapshot, now, strict=False)
-            self.world = self._world(state.values)
-            if saved.world is not None:
-                self.world.load(saved.world, now)
-        self.cycle = StationCycle(runner, self.world, state)
+            self.devices = self.setup(model.station, state.values, None)
+            if saved.world is not None and isinstance(self.devices, Restorable):
+                self.devices.load(saved.world, now)
+        self.cycle = StationCycle(runner, self.devices, state)
         self.last_snapshot = ""
         self.view = self._make_view(now)
 
@@ -148,22 +170,6 @@ class LiveStation:
             planning=self.worker,
         )
 
-    def _world(
-        self, start: Mapping[str, Value], scenario: Scenario | None = None
-    ) -> SimulatedWorld:
-        manual = frozenset(
-            t.name for t in self.model.station.model.transitions if t.name == CONFIRM_EFFECT
-        )
-        if scenario is None:
-            return SimulatedWorld(self.model.station, start=start, manual=manual)
-        return SimulatedWorld(
-            self.model.station,
-            delays=scenario.delays,
-            default_delay=scenario.default_delay,
-            start=start,
-            manual=manual,
-        )
-
     # -- the loop -------------------------------------------------------------------------------
 
     def now(self) -> float:
@@ -179,6 +185,7 @@ class LiveStation:
             self.thread.join(timeout=10)
         if self.worker is not None:
             self.worker.close()
+        self.devices.close()
 
     def _loop(self) -> None:
         next_tick = self.clock()
@@ -226,7 +233,7 @@ class LiveStation:
         compared = records.compared(data)
         changed = bool(entries) or compared != self.last_snapshot
         if changed:
-            world = json.dumps(self.world.dump(now), sort_keys=True)
+            world = json.dumps(self.devices.dump(now), sort_keys=True)
             alarms_changed = bool(changes) or bool(answers)
             round_ = records.RoundRecord(
                 entries, json.dumps(data, sort_keys=True), world, alarms_changed
@@ -280,7 +287,8 @@ class LiveStation:
         return self._submit("confirm", card, user)
 
     def inject(self, fault: Fault, text: str, user: str) -> Future[None]:
-        self._require_simulated()
+        if not isinstance(self.devices, FaultInjection):
+            raise StationError("faults are injected on simulated or emulated devices only")
         return self._submit("fault", (fault, text), user)
 
     def play_experiment(self, scenario: Scenario, title: str, user: str) -> Future[None]:
@@ -309,13 +317,18 @@ class LiveStation:
         user, payload = request.user, request.payload
         match request.kind:
             case "confirm":
-                card = self.state.values.get("operator.card")
-                if card != payload:
-                    raise StationError(f"card '{payload}' is no longer shown (now: {card})")
-                done = self.world.perform(CONFIRM_EFFECT)
-                entries.append(
-                    AuditEntry("operator", "card done", user, "operator", {"card": card})
-                )
+                values = self.state.values
+                watches = self.model.station.watches
+                shown = [(p, w) for p, w in watches if values.get(w.card) == payload]
+                if not shown:
+                    now_shown = ", ".join(str(values.get(w.card)) for _, w in watches)
+                    raise StationError(
+                        f"card '{payload}' is no longer shown (now: {now_shown or 'none'})"
+                    )
+                person, watch = shown[0]
+                done = self.devices.perform(watch.confirm)
+                detail = {"card": str(payload)}
+                entries.append(AuditEntry("operator", "card done", user, person.name, detail))
                 return done
             case "fault":
                 fault, text = payload
@@ -377,10 +390,12 @@ class LiveStation:
         self.worker = self._worker(model)
         runner = self._runner(model, self.config)
         state = carry_over(self.state, runner, now)
-        variables = model.station.model.variable_index
-        world_values = {n: v for n, v in self.world.values.items() if n in variables}
-        self.world = self._world({**state.values, **world_values})
-        self.cycle = StationCycle(runner, self.world, state)
+        if isinstance(self.devices, SimulatedWorld):
+            # the simulated world is rebuilt on the new model, keeping what it measured
+            variables = model.station.model.variable_index
+            world = {n: v for n, v in self.devices.values.items() if n in variables}
+            self.devices = self.setup(model.station, {**state.values, **world}, None)
+        self.cycle = StationCycle(runner, self.devices, state)
         records.set_active_version(self.store, self.name, model.version_id)
         detail = {"version": model.number, "previous": old.number}
         entries.append(AuditEntry("model", "activated", user, "", detail))
@@ -391,9 +406,10 @@ class LiveStation:
         config = replace(scenario.config, auto_intentions=frozenset())
         runner = self._runner(self.model, config)
         state = runner.initial(now, scenario.start)
-        self.world = self._world(state.values, scenario)
+        self.devices.close()
+        self.devices = self.setup(self.model.station, state.values, scenario)
         faults = [replace(f, at=None if f.at is None else now + f.at) for f in scenario.faults]
-        self.cycle = StationCycle(runner, self.world, state, faults)
+        self.cycle = StationCycle(runner, self.devices, state, faults)
         self.experiment = title
         entries.append(AuditEntry("experiment", title, user, "", {"file": scenario.file}))
         for name in scenario.intentions or ():

@@ -12,6 +12,7 @@ from enum import StrEnum
 from app.station_view import StationView
 from planner.model import TransitionKind
 from planner.runner import OperationState, TransitionPlan
+from planner.watch import IDLE
 
 
 class CardKind(StrEnum):
@@ -60,22 +61,27 @@ def _executing(view: StationView) -> list[str]:
 
 
 def _command_cards(view: StationView) -> list[TaskCard]:
+    """The card each person's watch shows (planner.watch), until the person taps Done."""
+    cards = []
     values = view.state.values
-    card = values.get("operator.card")
-    if card in (None, "idle") or values.get("operator.done") != "idle":
-        return []
-    for ability in view.model.station.abilities:
-        executing = ability.predicates.get("executing")
-        if ability.resource == "operator" and executing and view.runner.holds(executing, values):
-            title = sentence(ability.description or ability.name.replace("_", " "))
-            break
-    else:
-        title = sentence(str(card).replace("_", " "))
-    why = sentence("; ".join(_executing(view)) or "the operation plan asks for it")
-    waited = _waited_for_a_person(view)
-    if waited:
-        why += f". The station has been waiting for you for {waited}."
-    return [TaskCard(CardKind.COMMAND, f"card-{card}", title, why, card=str(card))]
+    for person, watch in view.model.station.watches:
+        card = values.get(watch.card)
+        if card in (None, IDLE) or values.get(watch.done) != IDLE:
+            continue
+        for ability in view.model.station.abilities:
+            executing = ability.predicates.get("executing")
+            mine = ability.resource == person.name
+            if mine and executing and view.runner.holds(executing, values):
+                title = sentence(ability.description or ability.name.replace("_", " "))
+                break
+        else:
+            title = sentence(str(card).replace("_", " "))
+        why = sentence("; ".join(_executing(view)) or "the operation plan asks for it")
+        waited = _waited_for_a_person(view)
+        if waited:
+            why += f". The station has been waiting for you for {waited}."
+        cards.append(TaskCard(CardKind.COMMAND, f"card-{card}", title, why, card=str(card)))
+    return cards
 
 
 def _waited_for_a_person(view: StationView) -> str:

@@ -3,7 +3,10 @@
 Each round the cycle lets the devices act up to the present (`advance`), reads what they
 report (`read`), hands the report to the runner, and writes the runner's command values
 back (`write`).  A person's maintenance step that the runner accepted is done in the world
-too (`maintenance_done`): simulated devices apply it, real ones will measure it.
+too (`maintenance_done`): simulated devices apply it, emulated ones are told, real ones
+measure it.  A person's tap on a watch is an effect they `perform`.  The same interface is
+served by the simulated world (`hw.sim`) and by the drivers of a device file
+(`hw.station_devices`), so the station loop cannot tell them apart.
 """
 
 from __future__ import annotations
@@ -12,6 +15,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
 
+from hw.link import LinkStatus
 from planner.expressions import Value
 
 
@@ -42,6 +46,18 @@ class Devices(Protocol):
     def maintenance_done(self, transition: str) -> None:
         """A person did maintenance transition `transition` in the world."""
 
+    def perform(self, effect: str) -> bool:
+        """A person did effect `effect` (tapped Done on a watch); False if it cannot happen now."""
+
+    def links(self) -> Mapping[str, LinkStatus]:
+        """How each device's connection is doing, by device name."""
+
+    def dump(self, now: float) -> dict[str, object]:
+        """The devices' state as JSON-ready data, stored with the runner's snapshot."""
+
+    def close(self) -> None:
+        """Stop talking to the devices (drivers, threads, child processes)."""
+
 
 @runtime_checkable
 class ModelSimulation(Protocol):
@@ -53,3 +69,10 @@ class ModelSimulation(Protocol):
     """
 
     def follow_estimates(self, values: Mapping[str, Value]) -> None: ...
+
+
+@runtime_checkable
+class Restorable(Protocol):
+    """Devices whose state a station restart can restore (a simulated world)."""
+
+    def load(self, data: Mapping[str, object], now: float) -> None: ...

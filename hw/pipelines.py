@@ -124,6 +124,23 @@ def track_pose(poses: NamedPoses, joints: Sequence[float], before: PoseAndLast) 
     return PoseAndLast(pos, before.last if pos == UNKNOWN else pos)
 
 
+def track_move(
+    poses: NamedPoses, joints: Sequence[float], before: PoseAndLast, target: str | None
+) -> PoseAndLast:
+    """`track_pose` for a robot that may be on a commanded move to `target`.
+
+    In the model a move is under way while `pos != ref`, and `pos` becomes the target when it
+    arrives (seed 003 Table IV).  So on the way the robot is still where it left, even when
+    its path crosses another named pose (bp1 to bp4 passes bp2 and bp3) or no pose at all;
+    only without a move under way is a robot off every pose `unknown` (pushed, stopped).
+    """
+    if target is None:
+        return track_pose(poses, joints, before)
+    if poses.pose_of(joints) == target:
+        return PoseAndLast(target, target)
+    return before
+
+
 # -- measured: registers ---------------------------------------------------------------------------
 
 

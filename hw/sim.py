@@ -14,6 +14,7 @@ from collections.abc import Mapping
 
 from hw.devices import DeviceReport
 from hw.faults import FAULTS, Fault, FaultKind
+from hw.link import LinkStatus
 from planner.expressions import Value
 from planner.model import TransitionKind, VariableKind
 from planner.semantics import Semantics
@@ -105,6 +106,18 @@ class SimulatedWorld:
         for name in self.measured:
             self.values[name] = after[name]
         return True
+
+    def links(self) -> dict[str, LinkStatus]:
+        """Each resource, connected unless a fault cut it."""
+        return {
+            name: LinkStatus(True, 0.0)
+            if name not in self.disconnected
+            else LinkStatus(False, error="cut by a simulated fault")
+            for name in self.resource_variables
+        }
+
+    def close(self) -> None:
+        """Nothing to stop: the simulation runs in the station's own loop."""
 
     def dump(self, now: float) -> dict[str, object]:
         """The devices' state as JSON-ready data (pending effects relative to `now`)."""

@@ -41,9 +41,18 @@ from planner.loading import (
     scope_for,
 )
 from planner.model import Model, Specification, Transition, TransitionKind, Variable
+from planner.watch import Watch, read_watch
 
 STATION_KEYS = ("station", "description", "resources", "operations", "intentions")
-_RESOURCE_KEYS = ("name", "description", "kind", "variables", "abilities", "transitions")
+_RESOURCE_KEYS = (
+    "name",
+    "description",
+    "kind",
+    "variables",
+    "abilities",
+    "transitions",
+    "watch",
+)
 _ABILITY_KEYS = (
     "name",
     "description",
@@ -100,6 +109,7 @@ class Resource:
     abilities: tuple[str, ...]  # qualified ability names
     transitions: tuple[str, ...]  # every transition belonging to the resource
     kind: ResourceKind = ResourceKind.DEVICE
+    watch: Watch | None = None  # a person's smartwatch (planner.watch)
 
     @property
     def person(self) -> bool:
@@ -164,6 +174,11 @@ class Station:
 
     def intention(self, name: str) -> Intention:
         return next(i for i in self.intentions if i.name == name)
+
+    @property
+    def watches(self) -> tuple[tuple[Resource, Watch], ...]:
+        """The people's watches, with the person each belongs to."""
+        return tuple((r, r.watch) for r in self.resources if r.watch is not None)
 
 
 Fields = dict[str, tuple[yaml.Node, yaml.Node]]
@@ -308,6 +323,7 @@ def read_station(reader: Reader, top: Fields) -> Station:
             predicates[f"{intention.name}.goal"] = intention.goal
             if intention.always is not None:
                 predicates[f"{intention.name}.always"] = intention.always
+    resources = _with_watches(reader, resources, resource_fields, by_name, transitions)
     reader.raise_if_errors()
     model = Model(
         tuple(variables), tuple(t for t, _ in transitions), tuple(specifications), reader.file
@@ -322,6 +338,29 @@ def read_station(reader: Reader, top: Fields) -> Station:
         predicates,
         frozenset(restart),
     )
+
+
+def _with_watches(
+    reader: Reader,
+    resources: list[Resource],
+    fields: list[tuple[str, Fields]],
+    variables: Mapping[str, Variable],
+    transitions: list[tuple[Transition, yaml.Node]],
+) -> list[Resource]:
+    """Resources with their `watch:` read; a watch belongs to a person."""
+    declared = {name: f["watch"] for name, f in fields if "watch" in f}
+    result = []
+    for resource in resources:
+        if resource.name not in declared:
+            result.append(resource)
+            continue
+        key, node = declared[resource.name]
+        if not resource.person:
+            reader.error(key, f"only a person carries a watch; give '{resource.name}' kind: person")
+        own = {t.name: t for t, _ in transitions if t.name in resource.transitions}
+        watch = read_watch(reader, node, resource.name, variables, own)
+        result.append(replace(resource, watch=watch))
+    return result
 
 
 def _effect_predicate(action: Assign) -> Expr:

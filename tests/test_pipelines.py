@@ -25,6 +25,7 @@ from hw.pipelines import (
     Tool,
     bit,
     enumeration,
+    track_move,
     track_pose,
 )
 
@@ -71,6 +72,33 @@ def test_between_poses_a_robot_is_unknown_and_keeps_its_last_pose() -> None:
     assert moving == PoseAndLast(UNKNOWN, "home")
     arrived = track_pose(POSES, POSES.poses["scan"], moving)
     assert arrived == PoseAndLast("scan", "scan")
+
+
+@given(
+    path=st.lists(st.tuples(st.sampled_from(sorted(POSES.poses)), st.floats(0, 1)), max_size=8),
+    target=st.sampled_from(sorted(POSES.poses)),
+)
+def test_on_a_commanded_move_the_robot_is_where_it_left_until_it_arrives(
+    path: list[tuple[str, float]], target: str
+) -> None:
+    """Whatever the path crosses (other poses, nothing), `pos` and `last` change only on
+    arrival at the target: a move's only effect is `arrive` (seed 003 Table IV)."""
+    before = PoseAndLast("home", "home")
+    for name, share in path:
+        between = [
+            a + share * (b - a) for a, b in zip(POSES.poses["home"], POSES.poses[name], strict=True)
+        ]
+        now = track_move(POSES, between, before, target)
+        at_target = POSES.pose_of(between) == target
+        assert now == (PoseAndLast(target, target) if at_target else before)
+        before = now
+
+
+def test_without_a_move_a_robot_off_every_pose_is_unknown() -> None:
+    pushed = [j + 0.3 for j in POSES.poses["scan"]]
+    assert track_move(POSES, pushed, PoseAndLast("scan", "scan"), None) == PoseAndLast(
+        UNKNOWN, "scan"
+    )
 
 
 @pytest.mark.parametrize(

@@ -1,0 +1,128 @@
+"""Starting the emulators of a device file (`sp emulate`, the demo, tests).
+
+One process per device: a UR controller emulator per robot (`hw.ur.controller`, on the
+robot's own loopback address, since ur_rtde's ports are fixed) and a Modbus emulator per
+Modbus device (`hw.modbus.emulator`, serving the documented map the device file names).
+Robots start at the named pose of their start value, the PLC with the start values it
+reports.  `launch` returns the device file as the station must see it (with the ports the
+emulators really bound, which differ from the file's when tests ask for any free port) and
+where each emulator's control channel is.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field, replace
+
+from hw.device_file import DeviceFile, DeviceSpec, DriverKind, RobotRole
+from hw.emulation.control import control
+from hw.emulation.process import EmulatorFailed, EmulatorProcess, start
+from hw.modbus.kinds import register_map
+from planner.expressions import Value
+
+
+@dataclass
+class Emulators:
+    """Running emulators: the device file pointing at them, and their control channels."""
+
+    devices: DeviceFile
+    processes: dict[str, EmulatorProcess] = field(default_factory=dict)
+    controls: dict[str, tuple[str, int]] = field(default_factory=dict)
+
+    def stop(self) -> None:
+        for process in self.processes.values():
+            process.stop()
+
+    def __enter__(self) -> Emulators:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+
+def launch(
+    devices: DeviceFile,
+    start_values: Mapping[str, Value],
+    *,
+    hosts: Mapping[str, str] | None = None,
+    any_port: bool = False,
+) -> Emulators:
+    """Starts an emulator per device (`hosts` moves devices to other addresses; `any_port`
+    lets Modbus servers and control channels take free ports); stops them all if one fails."""
+    moved = [replace(d, host=(hosts or {}).get(d.name, d.host)) for d in devices.devices]
+    emulated = [d for d in moved if d.driver is not DriverKind.WATCH]
+    for device in emulated:
+        if device.driver is DriverKind.MODBUS and not device.map:
+            raise EmulatorFailed(f"device '{device.name}' names no register map to emulate")
+    running = Emulators(replace(devices, devices=tuple(moved)))
+    with ThreadPoolExecutor(max(1, len(emulated))) as pool:
+        futures = {d.name: pool.submit(_start, d, start_values, any_port) for d in emulated}
+        problems = []
+        for name, future in futures.items():
+            try:
+                running.processes[name] = future.result()
+            except EmulatorFailed as problem:
+                problems.append(f"{name}: {problem}")
+    if problems:
+        running.stop()
+        raise EmulatorFailed("; ".join(problems))
+    return _connected(running, start_values)
+
+
+def _start(
+    device: DeviceSpec, start_values: Mapping[str, Value], any_port: bool
+) -> EmulatorProcess:
+    control_port = 0 if any_port else device.emulation.control_port
+    if device.driver is DriverKind.UR:
+        joints = _start_joints(device, start_values)
+        args = ["--host", device.host, "--control-port", str(control_port)]
+        return start("hw.ur.controller", *args, "--joints", ",".join(map(str, joints)))
+    port = 0 if any_port else device.port
+    spec = f"{device.map}:{device.name}:{device.host}:{port}:{device.unit}"
+    return start(
+        "hw.modbus.emulator", "--device", spec, "--control", f"{device.host}:{control_port}"
+    )
+
+
+def _start_joints(device: DeviceSpec, start_values: Mapping[str, Value]) -> tuple[float, ...]:
+    assert device.programs is not None
+    poses = device.programs.poses.poses
+    pose_variable = next((w.variable for w in device.wires if w.role is RobotRole.POSE), "")
+    pose = str(start_values.get(pose_variable, ""))
+    return poses[pose] if pose in poses else next(iter(poses.values()))
+
+
+def _connected(running: Emulators, start_values: Mapping[str, Value]) -> Emulators:
+    """The device file at the bound ports; each Modbus device told its start values."""
+    devices = []
+    for device in running.devices.devices:
+        process = running.processes.get(device.name)
+        if process is None:
+            devices.append(device)
+            continue
+        running.controls[device.name] = (device.host, process.ports["control"])
+        if device.driver is DriverKind.MODBUS:
+            device = replace(device, port=process.ports[device.name])
+            values = start_state(device, start_values)
+            if values:
+                request = {"op": "set", "device": device.name, "values": values}
+                control(*running.controls[device.name], request)
+        devices.append(device)
+    running.devices = replace(running.devices, devices=tuple(devices))
+    return running
+
+
+def start_state(device: DeviceSpec, start_values: Mapping[str, Value]) -> dict[str, Value]:
+    """What a device that only reports what people and logistics do (the PLC's tracker)
+    shows at the start: the start values of what it is wired to, by register name.  Devices
+    with logic of their own (a nutrunner) start as they power up."""
+    if device.map != "tracker":
+        return {}
+    documented = register_map(device.map)
+    values: dict[str, Value] = {}
+    for wire in device.wires:
+        register = documented.at(wire.register.point) if wire.register else None
+        if register is not None and wire.variable in start_values:
+            values[register.name] = start_values[wire.variable]
+    return values
