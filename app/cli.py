@@ -10,25 +10,24 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import signal
 import sys
+import threading
 import time
 from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, NoReturn
 
+from app import cli_station
+from app.cli_common import UsageError, planner_for, read_station, remember_order
 from planner.expressions import Expr, ExpressionError, parse_expr
 from planner.loading import Diagnostic, ModelError, closest, scope_for
 from planner.model import Model, SourceLocation, TransitionKind, VariableKind
 from planner.planning import PlanQuery, PlanResult, PlanStatus, State
-from planner.runner import EventKind
 from planner.runner.queries import QueryObserver
-from planner.station import Station, load_station
+from planner.station import Station
 from planner.synthesis import COUNTABLE_BITS
-
-
-class UsageError(Exception):
-    """Bad arguments or inputs other than the model: exit 2 with this message."""
 
 
 def main(argv: Sequence[str] | None = None, *, observer: QueryObserver | None = None) -> int:
@@ -36,15 +35,18 @@ def main(argv: Sequence[str] | None = None, *, observer: QueryObserver | None = 
     started = time.perf_counter()
     parser = _parser()
     args = parser.parse_args(argv)
+    _end_cleanly_on_sigterm()
     try:
         if args.command == "plan":
             return _plan(args, started)
         if args.command == "run":
-            return _run(args, observer)
+            return cli_station.run(args, observer)
         if args.command == "serve":
-            return _serve(args)
+            return cli_station.serve(args)
+        if args.command == "emulate":
+            return cli_station.emulate(args)
         if args.command == "audit":
-            return _audit(args)
+            return cli_station.audit(args)
         return _check(args)
     except ModelError as exc:
         for diagnostic in exc.diagnostics:
@@ -56,6 +58,18 @@ def main(argv: Sequence[str] | None = None, *, observer: QueryObserver | None = 
     except BrokenPipeError:  # `sp check MODEL | head`: the reader has gone, nothing to report
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
+
+
+def _end_cleanly_on_sigterm() -> None:
+    """`kill` (a CI time-out, a service manager) ends `sp` as Ctrl-C does: emulators,
+    drivers and the store are closed on the way out."""
+    if threading.current_thread() is not threading.main_thread():
+        return
+
+    def terminate(signum: int, frame: object) -> None:
+        raise SystemExit(128 + signum)
+
+    signal.signal(signal.SIGTERM, terminate)
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -88,6 +102,12 @@ def _parser() -> argparse.ArgumentParser:
         default=1.0,
         metavar="X",
         help="X times real time (default 1); 0 runs as fast as possible",
+    )
+    run.add_argument(
+        "--devices",
+        metavar="FILE",
+        help="play on emulated devices (started from this device file) in real time, "
+        "through ur_rtde and Modbus TCP",
     )
     run.add_argument("--json", action="store_true", help="print events as JSON lines")
     run.add_argument(
@@ -128,59 +148,34 @@ def _parser() -> argparse.ArgumentParser:
         "--secure-cookies", action="store_true", help="session cookies over HTTPS only"
     )
     serve.add_argument("--no-cache", action="store_true", help="do not reuse saved supervisors")
+    serve.add_argument(
+        "--devices",
+        metavar="FILE",
+        help="run on the devices of this device file (ur_rtde, Modbus TCP) instead of the "
+        "simulated world",
+    )
+    serve.add_argument(
+        "--emulate",
+        action="store_true",
+        help="with --devices: start the file's emulators first (the demo), and let the "
+        "simulation panel's faults act on them",
+    )
+    emulate = commands.add_parser(
+        "emulate",
+        help="start the emulators of a device file (UR controllers, Modbus devices) and keep "
+        "them running until Ctrl-C",
+    )
+    emulate.add_argument("devices", help="device file (YAML)")
+    emulate.add_argument(
+        "--model",
+        default="models/demo_station.yaml",
+        help="the station model the device file is checked against (its start values too)",
+    )
     audit = commands.add_parser("audit", help="check the audit log")
     audit_commands = audit.add_subparsers(dest="audit_command", required=True)
     verify = audit_commands.add_parser("verify", help="recompute the hash chain; exit 1 if broken")
     verify.add_argument("--db", default="sqlite:///station.db", help="database URL")
     return parser
-
-
-def _serve(args: argparse.Namespace) -> int:
-    import uvicorn
-
-    from app.serve import build, default_cache
-
-    model = Path(args.model)
-    if not model.exists():
-        raise UsageError(f"{args.model}: no such model file")
-    if args.period <= 0:
-        raise UsageError("--period must be more than 0")
-    if not 0 < args.speed <= 100:
-        raise UsageError("--speed must be more than 0 and at most 100")
-    print(f"starting the station on http://{args.host}:{args.port} (store: {args.db})", flush=True)
-    built = build(
-        model,
-        args.db,
-        cache=None if args.no_cache else default_cache(),
-        period=args.period,
-        speed=args.speed,
-        secure_cookies=args.secure_cookies,
-    )
-    if built.seeded:
-        print("demo users (first-login passwords; each must be changed on first sign-in):")
-        for name, role, password in built.seeded:
-            print(f"  {name:<10} {role:<10} {password}")
-    built.server.live.start()
-    try:
-        uvicorn.run(built.app, host=args.host, port=args.port, log_level="warning")
-    finally:
-        built.server.live.stop()
-    return 0
-
-
-def _audit(args: argparse.Namespace) -> int:
-    from app.serve import audit_verify
-    from app.store.db import open_store
-
-    store = open_store(args.db)
-    count, problems, head = audit_verify(store)
-    for problem in problems:
-        print(f"tampered: {problem}")
-    if problems:
-        print(f"audit log BROKEN: {len(problems)} problem(s) in {count} records")
-        return 1
-    print(f"audit log intact: {count} records, newest hash {head}")
-    return 0
 
 
 def _non_negative(text: str) -> int:
@@ -191,28 +186,6 @@ def _non_negative(text: str) -> int:
     if value < 0:
         raise argparse.ArgumentTypeError("must be 0 or more")
     return value
-
-
-def _read_station(path: str) -> tuple[Station, str]:
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise UsageError(f"{path}: cannot read the model: {exc}") from None
-    return load_station(text, path), text
-
-
-def _planner(args: argparse.Namespace, model: Model, text: str, engine: str = "bdd") -> Any:
-    from app import supervisor_cache
-
-    directory = None if args.no_cache else supervisor_cache.default_directory()
-    return supervisor_cache.planner(model, text, engine, directory)
-
-
-def _remember_order(args: argparse.Namespace, planner: Any, text: str) -> None:
-    from app import supervisor_cache
-
-    directory = None if args.no_cache else supervisor_cache.default_directory()
-    supervisor_cache.remember_order(planner, text, directory)
 
 
 def _goal(station: Station, text: str) -> Expr:
@@ -226,11 +199,11 @@ def _goal(station: Station, text: str) -> Expr:
 
 
 def _plan(args: argparse.Namespace, started: float) -> int:
-    station, text = _read_station(args.model)
+    station, text = read_station(args.model)
     model = station.model
     goal = _goal(station, args.goal)
     start = _read_state(model, args.state) if args.state else tuple(model.initial_values().values())
-    planner = _planner(args, model, text, args.engine)
+    planner = planner_for(args, model, text, args.engine)
     query = PlanQuery(
         start,
         goal,
@@ -240,50 +213,12 @@ def _plan(args: argparse.Namespace, started: float) -> int:
     )
     result = planner.plan(query)
     millis = round((time.perf_counter() - started) * 1000, 3)
-    _remember_order(args, planner, text)
+    remember_order(args, planner, text)
     if args.json:
         print(json.dumps(_plan_json(result, millis)))
     else:
         _print_plan(result, millis)
     return 0 if result.status is PlanStatus.FOUND else 1
-
-
-def _run(args: argparse.Namespace, observer: QueryObserver | None = None) -> int:
-    from app.scenario import Planners, Scenario, ScenarioError, load_scenario, play
-    from planner.operation_planner import OperationPlanner
-
-    if args.speed < 0:
-        raise UsageError("--speed must be 0 or more")
-    station, text = _read_station(args.model)
-    if args.scenario:
-        try:
-            scenario_text = Path(args.scenario).read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as exc:
-            raise UsageError(f"{args.scenario}: cannot read the scenario: {exc}") from None
-        try:
-            scenario = load_scenario(scenario_text, args.scenario, station)
-        except ScenarioError as exc:
-            raise UsageError(str(exc)) from None
-    else:
-        scenario = Scenario(file="(none)")
-    planners = Planners(_planner(args, station.model, text), OperationPlanner(station))
-    planners.transition.prepare()  # before the clock starts, as a station does while it builds
-    finished = False
-    playing = play(
-        station,
-        scenario,
-        planners,
-        speed=args.speed,
-        stopwatch=time.perf_counter,
-        observer=observer,
-    )
-    for event in playing:
-        if args.quiet and event.kind in (EventKind.EFFECT, EventKind.TAKEN):
-            continue
-        print(json.dumps(event.as_json(), default=str) if args.json else event, flush=True)
-        finished = event.kind is EventKind.DONE
-    _remember_order(args, planners.transition, text)
-    return 0 if finished else 1
 
 
 def _plan_json(result: PlanResult, millis: float) -> dict[str, Any]:
@@ -370,9 +305,9 @@ def _state_error(path: str, line: int, column: int, message: str) -> NoReturn:
 
 
 def _check(args: argparse.Namespace) -> int:
-    station, text = _read_station(args.model)
+    station, text = read_station(args.model)
     model = station.model
-    planner = _planner(args, model, text)
+    planner = planner_for(args, model, text)
     report = _size_report(model, planner, reachable=args.reachable)
     if args.json:
         print(json.dumps(report))

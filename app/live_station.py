@@ -30,7 +30,7 @@ from app.page_updates import PageUpdates
 from app.planning_worker import PlanningWorker
 from app.scenario import Scenario
 from app.station_cycle import StationCycle
-from app.station_view import ActiveModel, StationView
+from app.station_view import ActiveModel, DeviceLink, StationView
 from app.store.audit import AuditEntry
 from app.store.db import Store
 from hw.devices import Devices, Restorable
@@ -150,6 +150,7 @@ class LiveStation:
                 self.devices.load(saved.world, now)
         self.cycle = StationCycle(runner, self.devices, state)
         self.last_snapshot = ""
+        self.last_links: tuple[tuple[str, bool, str], ...] = ()
         self.view = self._make_view(now)
 
     # -- set-up ---------------------------------------------------------------------------------
@@ -231,7 +232,9 @@ class LiveStation:
         entries += [records.alarm_entry(c) for c in changes]
         data = snapshot.dump(self.state)
         compared = records.compared(data)
-        changed = bool(entries) or compared != self.last_snapshot
+        links = self._links_signature()
+        changed = bool(entries) or compared != self.last_snapshot or links != self.last_links
+        self.last_links = links
         if changed:
             world = json.dumps(self.devices.dump(now), sort_keys=True)
             alarms_changed = bool(changes) or bool(answers)
@@ -441,6 +444,25 @@ class LiveStation:
             simulated=self.simulated,
             armed_faults=tuple(f.text for f in self.cycle.faults),
             experiment=self.experiment,
+            devices=self._device_links(),
+        )
+
+    def _links_signature(self) -> tuple[tuple[str, bool, str], ...]:
+        """What of the devices' links changes the view: connected or not, and why."""
+        return tuple((n, s.connected, s.error) for n, s in sorted(self.devices.links().items()))
+
+    def _device_links(self) -> tuple[DeviceLink, ...]:
+        clock = time.monotonic()
+        return tuple(
+            DeviceLink(
+                name,
+                link.connected,
+                link.latency_ms,
+                None if link.last_data is None else max(0.0, clock - link.last_data),
+                link.restarts,
+                link.error,
+            )
+            for name, link in sorted(self.devices.links().items())
         )
 
     def watch_area(self, name: str, shows: Callable[[StationView], object]) -> None:

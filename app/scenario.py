@@ -16,6 +16,7 @@ from typing import Any
 import yaml
 
 from app.station_cycle import ScheduledAction, ScheduledFault, StationCycle, due
+from hw.devices import Devices
 from hw.faults import FAULTS, Fault, FaultKind
 from hw.sim import SimulatedWorld
 from planner.expressions import Expr, Value, parse_expr
@@ -334,6 +335,17 @@ def _known(where: Path, what: str, data: Mapping[str, Any], keys: tuple[str, ...
             raise _Problem((*where, key), f"unknown {what} key '{key}'; use {', '.join(keys)}")
 
 
+def person_delay_of(scenario: Scenario, station: Station) -> float:
+    """How long the scenario's people take to tap Done on their watch: the delay of the
+    watch's confirm effect, or of the person, or the default (as the simulated world has it)."""
+    for person, watch in station.watches:
+        if watch.confirm in scenario.delays:
+            return scenario.delays[watch.confirm]
+        if person.name in scenario.delays:
+            return scenario.delays[person.name]
+    return scenario.default_delay
+
+
 @dataclass
 class Planners:
     transition: TransitionPlanner
@@ -351,26 +363,37 @@ def play(
     sleep: Callable[[float], None] = time.sleep,
     watch: Callable[[RunnerState], None] | None = None,
     observer: QueryObserver | None = None,
+    devices: Devices | None = None,
+    clock: Callable[[], float] | None = None,
 ) -> Iterator[Event]:
     """Run the scenario; yields events. `speed` 0 runs as fast as possible, 1 in real time.
 
-    `watch` sees the runner's state after every tick (for tests and monitors); `observer`
-    sees every planning query (for benchmarks).
+    By default the station runs on its simulated world on a virtual clock.  With `devices`
+    (emulated devices, `app.emulated_station`) it runs in real time on `clock`: a round
+    every `step` seconds, the scenario's times counted from the first round.  `watch` sees
+    the runner's state after every tick (for tests and monitors); `observer` sees every
+    planning query (for benchmarks).
     """
     runner = Runner(
         station, planners.transition, planners.operation, scenario.config, stopwatch, observer
     )
-    world = SimulatedWorld(
-        station, delays=scenario.delays, default_delay=scenario.default_delay, start=scenario.start
-    )
-    now = 0.0
+    if devices is None:
+        devices = SimulatedWorld(
+            station,
+            delays=scenario.delays,
+            default_delay=scenario.default_delay,
+            start=scenario.start,
+        )
+    rounds = _Rounds(step, speed, sleep, clock)
     if scenario.planning_delay > 0:
         budget = scenario.planning_budget
-        runner.planning = Delayed(runner.planning, scenario.planning_delay, budget, lambda: now)
-    cycle = StationCycle(runner, world, runner.initial(now, scenario.start), list(scenario.faults))
+        runner.planning = Delayed(runner.planning, scenario.planning_delay, budget, rounds.now)
+    cycle = StationCycle(
+        runner, devices, runner.initial(0.0, scenario.start), list(scenario.faults)
+    )
     scheduled = list(scenario.actions)
     answers: list[tuple[float, Action]] = []  # people's actions, when due
-    while now <= scenario.until:
+    while (now := rounds.now()) <= scenario.until:
         for planned in [a for a in scheduled if due(a, now, runner, cycle.state.values)]:
             scheduled.remove(planned)
             answers.append((now, planned.action))
@@ -385,13 +408,45 @@ def play(
         if _finished(cycle.state, scenario):
             yield Event(now, EventKind.DONE, "all intentions finished")
             return
-        now = round(now + step, 6)
-        if speed > 0:
-            sleep(step / speed)
+        rounds.next()
     waiting = [w.as_json() for w in waiting_for(runner, cycle.state)]
     yield Event(
-        now, EventKind.STOPPED, "time limit", {"until": scenario.until, "waiting_for": waiting}
+        rounds.now(),
+        EventKind.STOPPED,
+        "time limit",
+        {"until": scenario.until, "waiting_for": waiting},
     )
+
+
+class _Rounds:
+    """The player's clock: virtual (a round every `step`, slept `step / speed` when `speed`
+    is set), or real (`clock`, rounds every `step` seconds, late rounds not made up)."""
+
+    def __init__(
+        self,
+        step: float,
+        speed: float,
+        sleep: Callable[[float], None],
+        clock: Callable[[], float] | None,
+    ) -> None:
+        self.step, self.speed, self.sleep, self.clock = step, speed, sleep, clock
+        self.virtual = 0.0
+        self.started = clock() if clock is not None else 0.0
+        self.due = self.started
+
+    def now(self) -> float:
+        if self.clock is None:
+            return self.virtual
+        return round(self.clock() - self.started, 3)
+
+    def next(self) -> None:
+        if self.clock is None:
+            self.virtual = round(self.virtual + self.step, 6)
+            if self.speed > 0:
+                self.sleep(self.step / self.speed)
+            return
+        self.due = max(self.due + self.step, self.clock())
+        self.sleep(max(0.0, self.due - self.clock()))
 
 
 def _operator_answers(event: Event, scenario: Scenario, now: float) -> list[tuple[float, Action]]:

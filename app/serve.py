@@ -9,7 +9,7 @@ from __future__ import annotations
 import logging
 import re
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -17,7 +17,7 @@ from fastapi import FastAPI
 
 from app import supervisor_cache
 from app.auth import ApiTokens, secret_key, seed_demo_users
-from app.live_station import LiveStation
+from app.live_station import DeviceSetup, LiveStation
 from app.scenario import Scenario, ScenarioError, load_scenario
 from app.station_view import build_model
 from app.store import versions
@@ -25,6 +25,11 @@ from app.store.db import Store, open_store
 from app.views import task_cards
 from app.web.app import create_app
 from app.web.server import ROOT, Server
+from hw.device_file import DeviceFile
+from hw.devices import Devices
+from hw.emulation.world import EmulatedWorld
+from hw.station_devices import StationDevices
+from planner.expressions import Value
 from planner.station import Station
 
 log = logging.getLogger(__name__)
@@ -50,8 +55,12 @@ def build(
     secure_cookies: bool = False,
     seed_users: bool = True,
     planning_delay: float = 0.0,
+    devices: DeviceSetup | None = None,
 ) -> Built:
-    """Open (and migrate) the store, load the active model, restore the station, make the app."""
+    """Open (and migrate) the store, load the active model, restore the station, make the app.
+
+    `devices`: the station's devices (`on_devices`); by default the simulated world.
+    """
     store = open_store(url)
     store.upgrade()
     text = model_path.read_text(encoding="utf-8")
@@ -69,6 +78,7 @@ def build(
         period=period,
         clock=_scaled_clock(speed),
         planning_delay=planning_delay,
+        devices=devices,
     )
     # the task page shows the cards, and restart mode when there are none
     live.watch_area("tasks", lambda view: (task_cards(view), view.state.restart_mode))
@@ -81,6 +91,16 @@ def build(
         secure_cookies=secure_cookies,
     )
     return Built(create_app(server, key), server, seeded)
+
+
+def on_devices(devices: DeviceFile, world: EmulatedWorld | None = None) -> DeviceSetup:
+    """The station's devices from a device file: drivers for each device, with the emulated
+    world behind them when the devices are emulated (faults from the simulation panel)."""
+
+    def setup(station: Station, start: Mapping[str, Value], scenario: Scenario | None) -> Devices:
+        return StationDevices(devices, station, start, world=world)
+
+    return setup
 
 
 def _scaled_clock(speed: float) -> Callable[[], float]:

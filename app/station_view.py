@@ -45,6 +45,19 @@ class StationView:
     simulated: bool
     armed_faults: tuple[str, ...] = ()
     experiment: str = ""
+    devices: tuple[DeviceLink, ...] = ()
+
+
+@dataclass(frozen=True)
+class DeviceLink:
+    """How a device's connection was doing when the view was made (hw.link.LinkStatus)."""
+
+    name: str
+    connected: bool
+    latency_ms: float | None
+    data_age: float | None  # seconds since its last good data
+    restarts: int
+    error: str
 
 
 def build_model(version: ModelVersion, cache: Path | None) -> ActiveModel:

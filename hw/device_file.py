@@ -101,6 +101,8 @@ class Emulation:
     blocked: Mapping[str, str] = field(default_factory=dict)
     replaced: Mapping[str, str] = field(default_factory=dict)
     control_port: int = 0
+    engaged_at: tuple[str, ...] = ()  # a nutrunner bites only with a robot at these poses
+    engaged_where: tuple[SourceLocation, ...] = field(default=(), compare=False)
 
 
 @dataclass(frozen=True)
@@ -133,7 +135,7 @@ class DeviceFile:
 def load_devices(text: str, file: str, station: Station) -> DeviceFile:
     """Reads and checks a device file against `station`; `ModelError` lists every problem."""
     from hw.device_reading import read_device
-    from hw.wiring import check_wiring
+    from hw.wiring import check_scene, check_wiring
 
     reader = Reader(text, file)
     root = reader.compose()
@@ -156,6 +158,7 @@ def load_devices(text: str, file: str, station: Station) -> DeviceFile:
             names.append((read[0].name, read[1]))
     reader.unique(names, "device")
     check_wiring(reader, devices, station, top["devices"][0])
+    check_scene(reader, devices)
     reader.raise_if_errors()
     return DeviceFile(file, name or station.name, tuple(devices))
 

@@ -391,7 +391,7 @@ def _emulation(reader: Reader, fields: Fields, station: Station, device: DeviceS
     default = UR_CONTROL_PORT if device.driver is DriverKind.UR else MODBUS_CONTROL_PORT
     if "emulation" not in fields:
         return Emulation(control_port=default)
-    keys = ("blocked", "replaced", "control_port")
+    keys = ("blocked", "replaced", "control_port", "engaged_at")
     spec = reader.mapping(fields["emulation"][1], "emulation", keys) or {}
     port = default
     if "control_port" in spec:
@@ -413,4 +413,10 @@ def _emulation(reader: Reader, fields: Fields, station: Station, device: DeviceS
                 )
                 continue
             maps[key][effect] = reader.scalar(op_node, "an emulator operation") or ""
-    return Emulation(maps["blocked"], maps["replaced"], port)
+    engaged: list[tuple[str, yaml.Node]] = []
+    if "engaged_at" in spec:
+        for item in reader.sequence(spec["engaged_at"][1], "engaged_at"):
+            engaged.append((reader.scalar(item, "a pose") or "", item))
+    poses = tuple(p for p, _ in engaged)
+    where = tuple(reader.at(n) for _, n in engaged)
+    return Emulation(maps["blocked"], maps["replaced"], port, poses, where)

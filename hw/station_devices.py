@@ -137,6 +137,16 @@ class StationDevices:
             if id(each) in by_adapter:
                 each.write(by_adapter[id(each)])
 
+    def wait_until_ready(self, timeout: float, poll: float = 0.1) -> list[str]:
+        """Waits (before the station's clock starts) until every device answers, as a station
+        starting up does; the devices still silent after `timeout` seconds."""
+        deadline = time.monotonic() + timeout
+        while True:
+            silent = [a.spec.name for a in self.adapters if not a.read().alive]
+            if not silent or time.monotonic() >= deadline:
+                return silent
+            time.sleep(poll)
+
     def maintenance_done(self, transition: str) -> None:
         """A person did it in the world: emulated devices are told; real ones measure it."""
         if self.world is not None:

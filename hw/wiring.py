@@ -40,3 +40,13 @@ def check_wiring(
         if variable.kind in MUST_BE_WIRED and variable.name not in wired:
             kind = "measured" if variable.kind is VariableKind.MEASURED else "command"
             reader.error(at, f"the {kind} variable '{variable.name}' is wired to no device")
+
+
+def check_scene(reader: Reader, devices: Sequence[DeviceSpec]) -> None:
+    """The emulated scene's poses (`engaged_at`) are named poses of the file's robots."""
+    poses = {name for d in devices if d.programs for name in d.programs.poses.poses}
+    for device in devices:
+        emulation = device.emulation
+        for pose, where in zip(emulation.engaged_at, emulation.engaged_where, strict=True):
+            if pose not in poses:
+                reader.error_at(where, f"'{pose}' is no named pose of the file's robots")

@@ -134,6 +134,21 @@ def test_nutrunner_nok_strikes_the_next_run_only_and_stop_clears_it() -> None:
     assert flags(nr, "torque_reached", "nok") == (True, False)
 
 
+def test_nutrunner_tightens_only_while_held_down_on_a_bolt() -> None:
+    nr = Nutrunner(0.0, FAST)
+    nr.engaged = False
+    command(nr, 0.0, set_idle=False, run_forward=True)
+    nr.step(0.5)
+    nr.step(10.0)  # spinning in the air: no torque however long
+    assert flags(nr, "is_running", "torque_reached", "nok") == (True, False, False)
+    assert nr["torque"] == 0
+    nr.engaged = True
+    nr.step(11.0)
+    assert not flags(nr, "torque_reached")[0]  # the tightening starts when it is held down
+    nr.step(12.0)
+    assert flags(nr, "torque_reached") == (True,)
+
+
 def test_nutrunner_told_to_idle_before_spinning_up_never_runs() -> None:
     nr = Nutrunner(0.0, FAST)
     command(nr, 0.0, set_idle=False, run_forward=True)
@@ -177,6 +192,30 @@ def test_connector_lock_that_never_completes_until_a_reset() -> None:
     tc.reset()
     tc.step(100.1)
     assert flags(tc, "connected", "not_connected") == (True, False)
+
+
+def test_connector_release_that_never_completes_until_the_fault_ends() -> None:
+    tc = Connector(0.0, {"lock": 1.0, "unlock": 0.5})
+    command(tc, 0.0, lock=True, unlock=False)
+    tc.step(1.0)
+    tc.fail_unlocks(Shots(always=True))
+    command(tc, 2.0, lock=False, unlock=True)
+    tc.step(50.0)
+    assert flags(tc, "connected", "not_connected") == (True, False)
+    tc.fail_unlocks(Shots(times=0))
+    tc.step(50.1)
+    assert flags(tc, "connected", "not_connected") == (False, True)
+
+
+def test_connector_lock_hanging_on_a_fault_completes_when_the_fault_ends() -> None:
+    tc = Connector(0.0)
+    tc.fail_locks(Shots(always=True), LockFault.NEVER)
+    command(tc, 0.0, lock=True, unlock=False)
+    tc.step(10.0)
+    assert flags(tc, "connected") == (False,)
+    tc.fail_locks(Shots(times=0), LockFault.NEVER)
+    tc.step(10.1)
+    assert flags(tc, "connected") == (True,)
 
 
 def test_connector_failure_bit_blocks_locking_until_the_reset_coil_rises() -> None:

@@ -136,6 +136,7 @@ def status_context(view: StationView) -> dict[str, Any]:
             }
             for r in station.resources
         ],
+        "devices": view.devices,
         "intentions": plan_view.intention_rows(station, s),
         "operations": plan_view.operation_rows(station, s),
         "timed_out": sorted(s.timed_out),

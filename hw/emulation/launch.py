@@ -18,6 +18,7 @@ from dataclasses import dataclass, field, replace
 from hw.device_file import DeviceFile, DeviceSpec, DriverKind, RobotRole
 from hw.emulation.control import control
 from hw.emulation.process import EmulatorFailed, EmulatorProcess, start
+from hw.emulation.scene import Scene
 from hw.modbus.kinds import register_map
 from planner.expressions import Value
 
@@ -29,8 +30,11 @@ class Emulators:
     devices: DeviceFile
     processes: dict[str, EmulatorProcess] = field(default_factory=dict)
     controls: dict[str, tuple[str, int]] = field(default_factory=dict)
+    scene: Scene | None = None
 
     def stop(self) -> None:
+        if self.scene is not None:
+            self.scene.stop()
         for process in self.processes.values():
             process.stop()
 
@@ -110,19 +114,20 @@ def _connected(running: Emulators, start_values: Mapping[str, Value]) -> Emulato
                 control(*running.controls[device.name], request)
         devices.append(device)
     running.devices = replace(running.devices, devices=tuple(devices))
+    running.scene = Scene(running.devices, running.controls)
     return running
 
 
 def start_state(device: DeviceSpec, start_values: Mapping[str, Value]) -> dict[str, Value]:
-    """What a device that only reports what people and logistics do (the PLC's tracker)
-    shows at the start: the start values of what it is wired to, by register name.  Devices
-    with logic of their own (a nutrunner) start as they power up."""
-    if device.map != "tracker":
-        return {}
+    """What a Modbus device shows at the start, by register name: for each wired variable
+    whose start value differs from the device's power-on value, the start value (a scenario
+    that begins with a tool locked on starts with the connector locked)."""
     documented = register_map(device.map)
     values: dict[str, Value] = {}
     for wire in device.wires:
         register = documented.at(wire.register.point) if wire.register else None
-        if register is not None and wire.variable in start_values:
+        if register is None or wire.variable not in start_values:
+            continue
+        if start_values[wire.variable] != register.initial:
             values[register.name] = start_values[wire.variable]
     return values

@@ -3,7 +3,9 @@
 An emulator's entry point prints one JSON line on stdout once every server listens:
 `{"ready": true, "ports": {NAME: PORT, ...}}` (the ports it really bound, which matters when
 it was asked for port 0).  `start` waits for that line; `stop` ends the process and its
-children, also after a failed test, so that no emulator outlives its user.
+children, also after a failed test, so that no emulator outlives its user.  And should the
+user itself be killed (`kill -9`, a CI time-out), the emulator notices that its stdin, a
+pipe from the user, has closed, and ends too (`exit_with_parent`).
 """
 
 from __future__ import annotations
@@ -15,9 +17,28 @@ import select
 import signal
 import subprocess
 import sys
+import threading
 import time
 from dataclasses import dataclass, field
 from typing import Any
+
+PARENT = "SP_EMULATOR_PARENT"  # set for an emulator whose stdin is its user's pipe
+
+
+def exit_with_parent() -> None:
+    """In an emulator started by `start`: end this process (SIGTERM, so that it shuts down
+    as usual) once the user's end of the stdin pipe closes.  Run by hand, it does nothing."""
+    if os.environ.get(PARENT) != "1":
+        return
+
+    def watch() -> None:
+        # the raw descriptor, not sys.stdin: a daemon thread holding sys.stdin's lock would
+        # abort the interpreter's shutdown
+        while os.read(0, 4096):
+            pass
+        os.kill(os.getpid(), signal.SIGTERM)
+
+    threading.Thread(target=watch, name="parent-watch", daemon=True).start()
 
 
 class EmulatorFailed(RuntimeError):
@@ -51,8 +72,10 @@ def start(module: str, *args: str, timeout: float = 15.0) -> EmulatorProcess:
     """Runs `python -m module args...` in its own process group; returns once it is ready."""
     process = subprocess.Popen(
         [sys.executable, "-m", module, *args],
+        stdin=subprocess.PIPE,
         stdout=subprocess.PIPE,
         start_new_session=True,
+        env={**os.environ, PARENT: "1"},
     )
     emulator = EmulatorProcess(process)
     try:

@@ -118,10 +118,14 @@ class EmulatedWorld:
         raise ValueError(f"the device file says no emulator fault for {how} effect '{effect}'")
 
     def _network(self, device: DeviceSpec, down: bool) -> None:
+        """A resource that drops out stops answering, and stops acting too, as in the
+        simulated world (a robot stops where it is; a Modbus device's logic stands still)."""
         if device.driver is DriverKind.UR:
             self.request(device.name, {"op": "network", "down": down, "mode": "silent"})
+            self.request(device.name, {"op": "stall", "on": down})
         else:
             self.request(device.name, {"op": "network", "mode": "silent" if down else "up"})
+            self.request(device.name, {"op": "freeze", "frozen": down})
 
     def _toggle(self, device: DeviceSpec, op: str, on: bool) -> None:
         if device.driver is DriverKind.UR:

@@ -96,10 +96,10 @@ class Camera(DeviceLogic):
     def advance(self, now: float) -> bool:
         trigger = bool(self["trigger"])
         if self.phase is Phase.READY and trigger:
-            self._enter(Phase.SCANNING, now)
+            self._enter(Phase.SCANNING, self.noticed())
             self.flag("busy", True)
         elif self.phase is Phase.SCANNING and not trigger:
-            self._enter(Phase.READY, now)  # abandoned: no result
+            self._enter(Phase.READY, self.noticed())  # abandoned: no result
             self.flag("busy", False)
         elif self.phase is Phase.SCANNING and now >= self.since + self.timing["process"]:
             self._enter(Phase.SHOWING, self.since + self.timing["process"])
@@ -110,7 +110,7 @@ class Camera(DeviceLogic):
             self.flag("busy", False)
             self.flag("missed" if missed else "located", True)
         elif self.phase is Phase.SHOWING and not trigger:
-            self._enter(Phase.CLEARING, now)
+            self._enter(Phase.CLEARING, self.noticed())
         elif self.phase is Phase.CLEARING and now >= self.since + self.timing["clear"]:
             self._enter(Phase.READY, self.since + self.timing["clear"])
             self._show((0.0,) * 6)

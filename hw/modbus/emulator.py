@@ -36,6 +36,7 @@ from pymodbus.server import ModbusTcpServer
 from pymodbus.simulator import DataType, SimData, SimDevice
 
 from hw.emulation.control import serve_control
+from hw.emulation.process import exit_with_parent
 from hw.modbus.kinds import KINDS
 from hw.modbus.logic import DeviceLogic
 from hw.modbus.operations import OPERATIONS
@@ -343,6 +344,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not args.delay_scale >= 0:
         parser.error("--delay-scale is a number >= 0")
     logging.basicConfig(format="%(name)s: %(message)s")
+    exit_with_parent()
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL)  # chatter about closed clients
     asyncio.run(serve(specs, control, args.delay_scale))
     return 0

@@ -68,6 +68,7 @@ class DeviceLogic:
         self.timing = dict(self.timing_defaults)
         self.set_timing(timing or {})
         self.now = now
+        self.since = now  # when the device entered its present phase
         self.raw: dict[Point, int] = {r.point: r.initial_raw for r in self.register_map}
         self._truth = dict(self.raw)  # what the logic says, whatever a stuck value shows
         self.stuck: dict[str, int] = {}
@@ -150,6 +151,13 @@ class DeviceLogic:
     def advance(self, now: float) -> bool:
         """Makes the next transition due by `now`; False when there is none."""
         return False
+
+    def noticed(self) -> float:
+        """When a command the device acts on now took effect: it was written at the last step
+        (clients' writes come between steps), or it waited for the phase it now ends
+        (`since`), whichever is later.  Using this instead of the
+        step's own time keeps a device's behaviour independent of how often it is stepped."""
+        return max(self.since, self.now)
 
     def set_timing(self, timing: Mapping[str, float]) -> None:
         for key, seconds in timing.items():

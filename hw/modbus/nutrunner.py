@@ -6,6 +6,10 @@ Commands are levels: run = `run_forward` and not `set_idle`; idle = `set_idle` a
 is_idle falls and is_running rises, the torque climbs for `tighten` seconds, then
 torque_reached rises, or nok when the NOK fault strikes (torque stays at 60 % of target).
 After idle: `stop` seconds later is_running, torque_reached and nok fall and is_idle rises.
+
+A nut tightens only against a bolt: while the tool is not `engaged` (no robot holds it down
+on a bolt pair: the emulated scene says so, `hw.emulation.scene`) it spins freely and the
+tightening starts over once it is.
 """
 
 from __future__ import annotations
@@ -100,21 +104,26 @@ class Nutrunner(DeviceLogic):
         self.phase = Phase.IDLE
         self.since = now  # when the phase began
         self.nok_fault = Shots()
+        self.engaged = True  # on a bolt (the scene tells; alone, a nutrunner is on one)
 
     def advance(self, now: float) -> bool:
         run = bool(self["run_forward"]) and not self["set_idle"]
         idle = bool(self["set_idle"]) and not self["run_forward"]
         due = self.since + self.timing[_DELAY.get(self.phase, "stop")]
         if self.phase is Phase.IDLE and run:
-            self._enter(Phase.STARTING, now)
+            self._enter(Phase.STARTING, self.noticed())
         elif self.phase is Phase.STARTING and idle:
-            self._enter(Phase.IDLE, now)  # it never spun up
+            self._enter(Phase.IDLE, self.noticed())  # it never spun up
         elif self.phase is Phase.STARTING and now >= due:
             self._enter(Phase.TIGHTENING, due)
             self.flag("is_idle", False)
             self.flag("is_running", True)
         elif self.phase in (Phase.TIGHTENING, Phase.DONE) and idle:
-            self._enter(Phase.STOPPING, now)
+            self._enter(Phase.STOPPING, self.noticed())
+        elif self.phase is Phase.TIGHTENING and not self.engaged:
+            self.since = now  # spinning freely: the tightening has not begun
+            self._torque(0.0)
+            return False
         elif self.phase is Phase.TIGHTENING and now >= due:
             self._enter(Phase.DONE, due)
             failed = self.nok_fault.take()
@@ -144,7 +153,12 @@ class Nutrunner(DeviceLogic):
         self.nok_fault = Shots()
 
     def faults(self) -> dict[str, Any]:
-        return {**super().faults(), "nok": self.nok_fault.as_json(), "phase": self.phase.value}
+        return {
+            **super().faults(),
+            "nok": self.nok_fault.as_json(),
+            "phase": self.phase.value,
+            "engaged": self.engaged,
+        }
 
 
 _DELAY = {Phase.STARTING: "spin_up", Phase.TIGHTENING: "tighten", Phase.STOPPING: "stop"}

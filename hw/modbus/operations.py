@@ -62,11 +62,24 @@ async def _nok(device: EmulatedDevice, request: dict[str, Any]) -> dict[str, Any
     return device.state()
 
 
+async def _engage(device: EmulatedDevice, request: dict[str, Any]) -> dict[str, Any]:
+    on = request.get("on", True)
+    if not isinstance(on, bool):
+        raise ValueError("'on' is true or false")
+    _logic(device, Nutrunner, "engage").engaged = on
+    return device.state()
+
+
 async def _lock_fails(device: EmulatedDevice, request: dict[str, Any]) -> dict[str, Any]:
     mode = request.get("mode", "never")
     if mode not in [m.value for m in LockFault]:
         raise ValueError(f"lock_fails mode is never or failure, not {mode!r}")
     _logic(device, Connector, "lock_fails").fail_locks(Shots.from_request(request), LockFault(mode))
+    return device.state()
+
+
+async def _unlock_fails(device: EmulatedDevice, request: dict[str, Any]) -> dict[str, Any]:
+    _logic(device, Connector, "unlock_fails").fail_unlocks(Shots.from_request(request))
     return device.state()
 
 
@@ -127,7 +140,9 @@ OPERATIONS: dict[str, Operation] = {
     "set": _set,
     "stuck": _stuck,
     "nok": _nok,
+    "engage": _engage,
     "lock_fails": _lock_fails,
+    "unlock_fails": _unlock_fails,
     "miss": _miss,
     "scene": _scene,
     "garbage": _garbage,

@@ -24,6 +24,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from hw.emulation.control import serve_control
+from hw.emulation.process import exit_with_parent
 from hw.ur import dashboard
 from hw.ur.arm import Arm
 from hw.ur.faults import handle
@@ -236,6 +237,7 @@ async def serve(args: argparse.Namespace) -> None:
 
 def main(argv: Sequence[str] | None = None) -> None:
     logging.basicConfig(level=logging.WARNING, stream=sys.stderr)
+    exit_with_parent()
     asyncio.run(serve(parse_args(argv)))
 
 

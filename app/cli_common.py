@@ -1,0 +1,47 @@
+"""What the `sp` subcommands share: usage errors, reading a model or a device file, the
+planner with its cached supervisor."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from hw.device_file import DeviceFile
+from planner.model import Model
+from planner.station import Station, load_station
+
+
+class UsageError(Exception):
+    """Bad arguments or inputs other than the model: exit 2 with this message."""
+
+
+def read_station(path: str) -> tuple[Station, str]:
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise UsageError(f"{path}: cannot read the model: {exc}") from None
+    return load_station(text, path), text
+
+
+def planner_for(args: argparse.Namespace, model: Model, text: str, engine: str = "bdd") -> Any:
+    from app import supervisor_cache
+
+    directory = None if args.no_cache else supervisor_cache.default_directory()
+    return supervisor_cache.planner(model, text, engine, directory)
+
+
+def remember_order(args: argparse.Namespace, planner: Any, text: str) -> None:
+    from app import supervisor_cache
+
+    directory = None if args.no_cache else supervisor_cache.default_directory()
+    supervisor_cache.remember_order(planner, text, directory)
+
+
+def device_file(path: str, station: Station) -> DeviceFile:
+    from app.emulated_station import read_device_file
+
+    try:
+        return read_device_file(path, station)
+    except OSError as exc:
+        raise UsageError(f"{path}: cannot read the device file: {exc}") from None
