@@ -4,9 +4,10 @@
 Commands are levels: lock = `lock` and not `unlock`; unlock = `unlock` and not `lock`; any
 other combination keeps what it does.  `lock` seconds after a lock command the connected
 sensor rises and not_connected falls together; `unlock` seconds after an unlock command
-they swap back.  Faults: a lock that never completes, a release that never completes, a lock that ends with the failure bit
-(which blocks locking until a reset: the `reset` coil rising, or the control channel's
-reset), and any sensor stuck at a value (`DeviceLogic.stick`).
+they swap back.  Faults: a lock that never completes, a release that never completes, a
+lock that ends with the failure bit (which blocks locking until a reset: the `reset` coil
+rising, or the control channel's reset), and any sensor stuck at a value
+(`DeviceLogic.stick`).
 """
 
 from __future__ import annotations
