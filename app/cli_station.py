@@ -48,6 +48,7 @@ def serve(args: argparse.Namespace) -> int:
             speed=args.speed,
             secure_cookies=args.secure_cookies,
             devices=devices,
+            simulated=devices is None or args.emulate,  # the simulation panel acts on emulators
         )
         if built.seeded:
             print("demo users (first-login passwords; each must be changed on first sign-in):")

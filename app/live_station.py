@@ -36,6 +36,7 @@ from app.store.db import Store
 from hw.devices import Devices, Restorable
 from hw.faults import Fault, FaultInjection
 from hw.sim import SimulatedWorld
+from hw.station_devices import StationDevices
 from planner.expressions import Value
 from planner.runner import (
     Action,
@@ -409,8 +410,11 @@ class LiveStation:
         config = replace(scenario.config, auto_intentions=frozenset())
         runner = self._runner(self.model, config)
         state = runner.initial(now, scenario.start)
-        self.devices.close()
-        self.devices = self.setup(self.model.station, state.values, scenario)
+        if isinstance(self.devices, StationDevices):  # emulated: put back, keep the drivers
+            self.devices.restart(state.values)
+        else:
+            self.devices.close()
+            self.devices = self.setup(self.model.station, state.values, scenario)
         faults = [replace(f, at=None if f.at is None else now + f.at) for f in scenario.faults]
         self.cycle = StationCycle(runner, self.devices, state, faults)
         self.experiment = title

@@ -38,6 +38,8 @@ class Adapter(Protocol):
 
     def start(self) -> None: ...
 
+    def restart(self, start: Mapping[str, Value], now: float) -> None: ...
+
     def close(self) -> None: ...
 
     def read(self) -> AdapterReport: ...
@@ -77,6 +79,9 @@ class RobotSample(Protocol):
     def protective_stop(self) -> bool: ...
 
     @property
+    def received(self) -> float: ...
+
+    @property
     def running(self) -> bool: ...
 
 
@@ -96,6 +101,13 @@ class RobotAdapter:
         self.target: str | None = None  # the named pose a commanded move is heading for
         self.sent: dict[RobotRole, Value] = {}
         self.nonsense = ""
+        self.not_before = 0.0  # readings older than this are from before a restart
+
+    def restart(self, start: Mapping[str, Value], now: float) -> None:
+        """The world was put back to `start` at `now` (time.monotonic()): forget the rest."""
+        pos = str(start.get(self.roles.get(RobotRole.POSE, ""), UNKNOWN))
+        self.pose = PoseAndLast(pos, str(start.get(self.roles.get(RobotRole.LAST_POSE, ""), pos)))
+        self.target, self.sent, self.not_before = None, {}, now
 
     def start(self) -> None:
         self.driver.start()
@@ -105,7 +117,7 @@ class RobotAdapter:
 
     def read(self) -> AdapterReport:
         sample = self.driver.latest()
-        if sample is None or not self.driver.available:
+        if sample is None or not self.driver.available or sample.received < self.not_before:
             return AdapterReport()
         if self.target is not None and (sample.protective_stop or not sample.running):
             self.target = None  # the move was aborted: wherever it stopped is where it is
@@ -178,6 +190,9 @@ class RegisterSample(Protocol):
     @property
     def values(self) -> Mapping[Point, Raw]: ...
 
+    @property
+    def received(self) -> float: ...
+
 
 class RegisterAdapter:
     """A Modbus device: bits and words to the model's values and back.  Observed product
@@ -190,6 +205,10 @@ class RegisterAdapter:
         self.wires = [w for w in spec.wires if w.register is not None]
         self.seen: dict[str, Value] = {}
         self.nonsense = ""
+        self.not_before = 0.0
+
+    def restart(self, start: Mapping[str, Value], now: float) -> None:
+        self.seen, self.not_before = {}, now
 
     def start(self) -> None:
         self.driver.start()
@@ -199,7 +218,7 @@ class RegisterAdapter:
 
     def read(self) -> AdapterReport:
         sample = self.driver.latest()
-        if sample is None or not self.driver.available:
+        if sample is None or not self.driver.available or sample.received < self.not_before:
             return AdapterReport()
         try:
             values = {
@@ -306,6 +325,11 @@ class WatchAdapter:
         self.answer_after = answer_after
         self.shown_at: float | None = None
         self.now = 0.0
+
+    def restart(self, start: Mapping[str, Value], now: float) -> None:
+        self.card = start.get(self.card_name, "idle")
+        self.done = start.get(self.done_name, "idle")
+        self.shown_at = None
 
     def start(self) -> None:
         """In the station process: nothing to connect."""

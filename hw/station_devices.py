@@ -36,6 +36,8 @@ class World(Protocol):
 
     def maintenance_done(self, transition: str, values: Mapping[str, Value]) -> None: ...
 
+    def restart(self, start: Mapping[str, Value]) -> None: ...
+
     def take_observed(self) -> dict[str, Value]: ...
 
     def close(self) -> None: ...
@@ -136,6 +138,17 @@ class StationDevices:
         for each in self.adapters:
             if id(each) in by_adapter:
                 each.write(by_adapter[id(each)])
+
+    def restart(self, start: Mapping[str, Value]) -> None:
+        """Back to `start` for an experiment: the emulated world is reset and the adapters
+        forget what they saw before (readings from before now are not taken)."""
+        if self.world is None:
+            raise ValueError("only emulated devices can be put back to a start")
+        self.world.restart(start)
+        now = time.monotonic()
+        for each in self.adapters:
+            each.restart(start, now)
+        self.values = dict(start)
 
     def wait_until_ready(self, timeout: float, poll: float = 0.1) -> list[str]:
         """Waits (before the station's clock starts) until every device answers, as a station

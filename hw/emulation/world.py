@@ -90,6 +90,30 @@ class EmulatedWorld:
                 self.request(device.name, {"op": "reset"})
         self._set(changed)
 
+    def restart(self, start: Mapping[str, Value]) -> None:
+        """Every emulated device back to normal and to the start (an experiment is played):
+        faults cleared, networks up, robots moved to their start poses by hand, Modbus devices
+        power-cycled and showing the start's values.  Waits until the emulators have it."""
+        from hw.emulation.launch import start_state
+
+        for device in self.devices.devices:
+            if device.name not in self.controls:
+                continue
+            if device.driver is DriverKind.UR:
+                for op in ("network", "stall", "protective_stop", "freeze"):
+                    key = "down" if op == "network" else "on"
+                    self.request(device.name, {"op": op, key: False})
+                pose = next((w.variable for w in device.wires if w.role is RobotRole.POSE), "")
+                self._move_by_hand(device, str(start.get(pose, "")))
+            else:
+                self.request(device.name, {"op": "network", "mode": "up"})
+                self.request(device.name, {"op": "restart"})
+                values = start_state(device, start)
+                if values:
+                    self.request(device.name, {"op": "set", "values": values})
+        self.observed.clear()
+        self.settle()
+
     def take_observed(self) -> dict[str, Value]:
         """Values people changed that no device measures, once (decision variables)."""
         observed, self.observed = self.observed, {}
