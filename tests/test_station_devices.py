@@ -1,0 +1,116 @@
+"""The station on emulated devices: the runner never trusts a device it cannot hear.
+
+The demo's device file, its emulators on a free block of loopback addresses, and the runner
+stepped in real time on them (`StationCycle`, as the live station does).  Each resource's
+devices are cut in turn (the scenario fault `disconnect`, acted out on the emulator); the
+runner must mark the resource unavailable within the devices' heartbeat time-out plus its
+own, and available again once it answers.  A device that answers nonsense (malformed
+frames) counts as not answering.
+"""
+
+from __future__ import annotations
+
+import socket
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+from app.emulated_station import EmulatedStation, emulate, start_values
+from app.station_cycle import StationCycle
+from hw.device_file import DeviceFile, load_devices
+from hw.faults import Fault, FaultKind
+from planner.operation_planner import OperationPlanner
+from planner.runner import Runner, RunnerConfig
+from planner.station import Station, load_station
+from planner.transition_planner import TransitionPlanner
+
+ROOT = Path(__file__).resolve().parent.parent
+MODEL = ROOT / "models" / "demo_station.yaml"
+DEVICES = ROOT / "models" / "demo_station.devices.yaml"
+CONFIG = RunnerConfig(heartbeat_timeout=1.0, auto_intentions=frozenset())
+PERIOD = 0.1
+
+
+def free_block() -> int:
+    for block in range(120, 250):
+        with socket.socket() as probe:
+            try:
+                probe.bind((f"127.0.{block}.2", 30004))
+            except OSError:
+                continue
+        return block
+    raise RuntimeError("no free loopback block")
+
+
+@dataclass
+class Running:
+    station: Station
+    devices: DeviceFile
+    emulated: EmulatedStation
+    cycle: StationCycle
+
+    def run_until(self, holds: object, limit: float) -> float:
+        """Steps the station every period until `holds()`; the seconds it took."""
+        started = time.monotonic()
+        while time.monotonic() - started < limit:
+            self.cycle.step(time.monotonic())
+            if holds():  # type: ignore[operator]
+                return time.monotonic() - started
+            time.sleep(PERIOD)
+        raise AssertionError(f"not within {limit} s")
+
+
+@pytest.fixture(scope="module")
+def running() -> Iterator[Running]:
+    station = load_station(MODEL.read_text(), str(MODEL))
+    text = DEVICES.read_text().replace("127.0.0.", f"127.0.{free_block()}.")
+    devices = load_devices(text, "demo.devices.yaml", station)
+    start = start_values(station, {})
+    with emulate(station, devices, start) as emulated:
+        assert emulated.devices.wait_until_ready(30.0) == []
+        runner = Runner(
+            station, TransitionPlanner(station.model), OperationPlanner(station), CONFIG
+        )
+        cycle = StationCycle(runner, emulated.devices, runner.initial(time.monotonic()))
+        yield Running(station, devices, emulated, cycle)
+
+
+CUT = ["r1", "r2", "r1_tc", "r2_tc", "r1_cam", "r2_cam", "nr"]
+
+
+@pytest.mark.parametrize("resource", CUT)
+def test_a_cut_device_is_unavailable_within_its_time_out_and_back_when_it_answers(
+    running: Running, resource: str
+) -> None:
+    state = lambda: running.cycle.state  # noqa: E731
+    running.run_until(lambda: not state().unavailable, 10.0)
+    timeout = max(d.heartbeat_timeout for d in running.devices.devices if d.resource == resource)
+    running.emulated.devices.inject(Fault(FaultKind.DISCONNECT, resource=resource))
+    took = running.run_until(lambda: resource in state().unavailable, 10.0)
+    assert took <= timeout + CONFIG.heartbeat_timeout + 4 * PERIOD
+    assert state().unavailable == {resource}  # the others carry on
+    link = running.emulated.devices.links()[resource]
+    assert not link.connected and link.error
+    running.emulated.devices.inject(Fault(FaultKind.RECONNECT, resource=resource))
+    running.run_until(lambda: resource not in state().unavailable, 10.0)
+    assert running.emulated.devices.links()[resource].connected
+
+
+def test_a_device_that_talks_nonsense_is_not_trusted(running: Running) -> None:
+    state = lambda: running.cycle.state  # noqa: E731
+    running.run_until(lambda: not state().unavailable, 10.0)
+    running.emulated.world.request("nr", {"op": "garbage", "count": 1000, "kind": "short"})
+    running.run_until(lambda: "nr" in state().unavailable, 5.0)
+    assert "nr" not in running.emulated.devices.read().heartbeats
+    running.emulated.world.request("nr", {"op": "reset"})
+    running.run_until(lambda: "nr" not in state().unavailable, 10.0)
+
+
+def test_people_s_changes_reach_the_runner_as_observed_product_states(running: Running) -> None:
+    running.emulated.devices.inject(Fault(FaultKind.SET, values={"bp2.state": "placed"}))
+    running.run_until(lambda: running.cycle.state.values["bp2.state"] == "placed", 3.0)
+    running.emulated.devices.inject(Fault(FaultKind.SET, values={"mir.docked": False}))
+    running.run_until(lambda: running.cycle.state.values["mir.docked"] is False, 3.0)
