@@ -46,7 +46,9 @@ def wait_for(check: object, limit: float) -> None:
 
 
 def emulators_of(block: int) -> list[str]:
-    ps = subprocess.run(["ps", "-ww", "-eo", "pid,args"], capture_output=True, text=True, check=True)
+    ps = subprocess.run(
+        ["ps", "-ww", "-eo", "pid,args"], capture_output=True, text=True, check=True
+    )
     return [line for line in ps.stdout.splitlines() if f"127.0.{block}." in line]
 
 
