@@ -10,13 +10,16 @@ from __future__ import annotations
 import multiprocessing
 import os
 import signal
+import threading
 import time
 from collections.abc import Callable, Iterator
+from pathlib import Path
 from typing import Any
 
 import pytest
 
 from hw.emulation.control import control
+from hw.ur import driver_child
 from hw.ur.driver import URDriver
 from hw.ur.emulated import emulate, free_host, host_range
 
@@ -184,6 +187,39 @@ def test_a_killed_child_is_restarted(healthy: Station) -> None:
     assert until(lambda: not healthy.driver.available, 2.0)
     assert healthy.recovered(), healthy.driver.status()
     assert healthy.driver.status().restarts == restarts + 1
+
+
+def timer_slacks(pid: int) -> dict[int, int]:
+    """Each thread of a process: its timer slack in ns (Linux's /proc/TID/timerslack_ns)."""
+    return {
+        int(task.name): int(Path(f"/proc/{task.name}/timerslack_ns").read_text())
+        for task in Path(f"/proc/{pid}/task").iterdir()
+    }
+
+
+def test_ur_rtdes_polling_threads_run_with_relaxed_timers_and_commands_without(
+    healthy: Station,
+) -> None:
+    child = healthy.driver._child
+    assert child is not None and child.pid is not None
+    slacks = timer_slacks(child.pid)
+    relaxed = round(driver_child.TIMER_SLACK * 1e9)
+    # ur_rtde's receive threads, one per RTDE connection (receive and control interfaces)
+    assert sum(1 for ns in slacks.values() if ns == relaxed) >= 2, slacks
+    assert slacks[child.pid] == timer_slacks(os.getpid())[os.getpid()] != relaxed
+
+
+def test_relaxed_timers_reach_threads_started_inside_and_give_the_caller_its_own_back() -> None:
+    def own_slack() -> int:
+        return int(Path(f"/proc/{threading.get_native_id()}/timerslack_ns").read_text())
+
+    before, seen = own_slack(), []
+    with driver_child.relaxed_timers(0.003):
+        thread = threading.Thread(target=lambda: seen.append(own_slack()))
+        thread.start()
+        thread.join()
+    assert seen == [3_000_000]
+    assert own_slack() == before
 
 
 def test_no_robot_is_unavailable_and_close_leaves_no_process() -> None:

@@ -16,13 +16,23 @@ acceleration)`, `("set_tool", tcp, payload_kg)`, `("stop_j",)`, `("close",)`.
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
+import sys
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from multiprocessing.connection import Connection
 from typing import Any
 
 SAMPLE_RATE = 50.0
+# What ur_rtde's threads are asked for; see `relaxed_timers` for why not its defaults.
+RECEIVE_RATE = 50.0  # Hz of the receive interface's data (the station reads at 10 Hz)
+# Hz of the control interface's handshake data: the controller's own (125, e-series 500); at
+# 25 Hz a moveJ now and then took 150 ms to start, since each handshake step waits for a sample
+CONTROL_RATE = -1.0
+TIMER_SLACK = 0.005  # s the kernel may defer the wake-ups of ur_rtde's threads
+PR_SET_TIMERSLACK, PR_GET_TIMERSLACK = 29, 30  # prctl(2)
 STOP_DECELERATION = 2.0
 RESUME_EVERY = 1.0
 VARIABLES = [
@@ -62,6 +72,31 @@ def wait_for_mode(dashboard: Any, mode: str, timeout: float) -> None:
     raise StartupFailed(f"robot did not reach {mode} within {timeout:.0f} s ({answer})")
 
 
+@contextlib.contextmanager
+def relaxed_timers(slack: float = TIMER_SLACK) -> Iterator[None]:
+    """Threads started inside get a coarse timer slack (Linux; elsewhere nothing changes).
+
+    ur_rtde's receive threads (one per RTDE connection) poll their socket with a 100 µs sleep
+    between polls: about 2,700 wake-ups a second each, 2-5 % of a core per thread, whatever the
+    data rate.  A thread inherits its timer slack from the thread that starts it, so the
+    constructors run with `slack`: their threads then wake every few ms, which is far inside
+    the station's 100 ms round.  The calling thread gets its own slack back, so that the
+    commands it sends keep their handshake timing.
+    """
+    prctl = None
+    if sys.platform.startswith("linux"):
+        with contextlib.suppress(OSError, AttributeError):
+            prctl = ctypes.CDLL(None, use_errno=True).prctl
+    before = prctl(PR_GET_TIMERSLACK, 0, 0, 0, 0) if prctl is not None else -1
+    if prctl is not None and before >= 0:
+        prctl(PR_SET_TIMERSLACK, ctypes.c_ulong(round(slack * 1e9)), 0, 0, 0)
+    try:
+        yield
+    finally:
+        if prctl is not None and before >= 0:
+            prctl(PR_SET_TIMERSLACK, ctypes.c_ulong(before), 0, 0, 0)
+
+
 def start_robot(host: str, link: Link, mode_timeout: float) -> tuple[Any, Any, Any]:
     """The real start-up order; returns (dashboard, receive, control)."""
     import dashboard_client
@@ -72,7 +107,8 @@ def start_robot(host: str, link: Link, mode_timeout: float) -> tuple[Any, Any, A
     dashboard = dashboard_client.DashboardClient(host)
     dashboard.connect()
     link.send("phase", "starting the receive interface")
-    receive = rtde_receive.RTDEReceiveInterface(host, -1.0, VARIABLES)
+    with relaxed_timers():
+        receive = rtde_receive.RTDEReceiveInterface(host, RECEIVE_RATE, VARIABLES)
     if not str(dashboard.robotmode()).endswith(("IDLE", "RUNNING")):
         link.send("phase", "powering on")
         dashboard.powerOn()
@@ -82,7 +118,8 @@ def start_robot(host: str, link: Link, mode_timeout: float) -> tuple[Any, Any, A
         dashboard.brakeRelease()
         wait_for_mode(dashboard, "RUNNING", mode_timeout)
     link.send("phase", "starting the control interface")
-    control = rtde_control.RTDEControlInterface(host)
+    with relaxed_timers():
+        control = rtde_control.RTDEControlInterface(host, CONTROL_RATE)
     return dashboard, receive, control
 
 
