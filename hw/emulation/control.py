@@ -33,6 +33,10 @@ async def serve_control(host: str, port: int, handler: Handler) -> asyncio.Serve
                 await writer.drain()
         except (ConnectionError, asyncio.IncompleteReadError, ValueError):
             pass
+        except asyncio.CancelledError:
+            # the emulator is ending: a cancelled session task would make Python 3.11's
+            # stream callback log a traceback for it; the session simply ends
+            return
         finally:
             writer.close()
 
