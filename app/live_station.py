@@ -313,6 +313,11 @@ class LiveStation:
         """Run another model version; refused unless the station is idle or in restart mode."""
         return self._submit("activate", model, user)
 
+    @property
+    def on_emulators(self) -> bool:
+        """Experiments act on emulated devices through the station's drivers."""
+        return self.simulated and isinstance(self.devices, StationDevices)
+
     def _require_simulated(self) -> None:
         if not self.simulated:
             raise StationError("faults are injected on simulated stations only")

@@ -68,6 +68,8 @@ def test_the_demo_station_runs_on_its_emulators_and_takes_them_along(tmp_path: P
             }  # fmt: skip
             page = browser.get("/simulation")
             assert page.status_code == 200
+            assert "on the emulated devices" in page.text and "simulated world" not in page.text
+            assert ">EMU</span>" in page.text and ">SIM</span>" not in page.text
             form = {"experiment": "e5_r2_disconnects_clear", "csrf_token": form_token(page.text)}
             assert browser.post("/simulation/experiment", data=form).status_code in (200, 303)
             wait_for(lambda: devices_shown(browser)["r2"] is False, 30)

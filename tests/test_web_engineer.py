@@ -244,6 +244,8 @@ def test_simulation_panel_plays_an_experiment(station: RunningStation):
     for key in experiments:
         assert f'data-experiment="{key}"' in page.text
     assert "r2 stops answering" in page.text
+    assert "on the simulated world" in page.text and "emulated devices" not in page.text
+    assert ">SIM</span>" in page.text and ">EMU</span>" not in page.text
 
     unknown = post(client, token, "/simulation/experiment", experiment="e6_r2_disconnect")
     assert unknown.status_code == 404

@@ -134,6 +134,7 @@ def page_context(
         "alarm_count": alarm_count,
         "alarm_priority": alarm_priority,
         "simulated": view.simulated,
+        "on_emulators": srv.live.on_emulators,
         "page": page,
         "view": view,
         **extra,
