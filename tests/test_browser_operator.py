@@ -47,7 +47,6 @@ def assert_fits_the_watch(page: Any) -> None:
 
 def operate(
     page: Any,
-    station: RunningStation,
     until: Callable[[], bool],
     on_card: Callable[[str, str, Any], None],
     seconds: float = 240,
@@ -132,7 +131,7 @@ def test_e2_operator_is_told_to_take_off_the_oil_filters_on_a_watch(
             screenshot(watch, "operator-watch-task.png")
             checked["command"] = True
 
-    seen = operate(watch, served, finished(served, "tighten_bolts"), on_card)
+    seen = operate(watch, finished(served, "tighten_bolts"), on_card)
     assert checked.get("recovery"), f"no recovery card: {seen}"
     assert ("instruction", "Take off the oil filters mounted too early") in seen
     assert any(kind == "command" and "bolt pair" in title for kind, title in seen)
@@ -154,7 +153,7 @@ def test_e6_operator_moves_r2_home_from_a_task_card_on_a_watch(
             assert "Failed:" in text, text  # what failed, in plain words
             screenshot(watch, "operator-watch-e6-instruction.png")
 
-    seen = operate(watch, served, finished(served, "tighten_bolts"), on_card)
+    seen = operate(watch, finished(served, "tighten_bolts"), on_card)
     assert ("instruction", "Move r2 home by hand") in seen, seen
     watch.goto(served.url + "/alarms")  # r2 was not answering: an alarm waits for a person
     assert watch.locator("li.alarm[data-key='resource:r2']").count() == 1

@@ -1,7 +1,7 @@
 """`sp serve --devices FILE --emulate`, the demo's command: the station process starts the
 emulators, drives them through ur_rtde and Modbus TCP, shows each device's link on the station
-page, lets the simulation panel's experiments act on the emulators, and takes its emulators
-with it when it is killed."""
+page, lets the simulation panel's experiments act on the emulators (the operator finishing E6
+from a watch in Chromium), and takes its emulators with it when it is killed."""
 
 from __future__ import annotations
 
@@ -10,10 +10,12 @@ import socket
 import subprocess
 import time
 from pathlib import Path
+from typing import Any
 
 import httpx
 
-from tests.stations import form_token, sign_in_with_forms
+from tests.stations import PASSWORDS, form_token, new_password, sign_in_with_forms
+from tests.test_browser_operator import WATCH, operate
 from tests.test_durability import ROOT, Serve
 
 DEVICES = ROOT / "models" / "demo_station.devices.yaml"
@@ -52,30 +54,75 @@ def emulators_of(block: int) -> list[str]:
     return [line for line in ps.stdout.splitlines() if f"127.0.{block}." in line]
 
 
-def test_the_demo_station_runs_on_its_emulators_and_takes_them_along(tmp_path: Path) -> None:
+def sign_in_on_a_watch(page: Any, url: str, name: str) -> None:
+    """Through the login form, changing the first-login password, as the operator would."""
+    page.goto(url + "/login")
+    page.fill("input[name=name]", name)
+    page.fill("input[name=password]", PASSWORDS[name])
+    page.locator("form[action='/login'] button[type=submit]").click()
+    page.wait_for_url("**/password")
+    page.fill("input[name=new_password]", new_password(name))
+    page.fill("input[name=repeat]", new_password(name))
+    page.locator("form[action='/password'] button[type=submit]").click()
+    page.wait_for_url(lambda url: not url.endswith(("/password", "/login")))
+
+
+def test_the_demo_station_runs_on_its_emulators_and_takes_them_along(
+    tmp_path: Path, browser: Any
+) -> None:
+    """The README's walk-through on emulated devices: E6 played from the simulation panel cuts
+    r2's network on its emulator, and the operator finishes it from a watch in Chromium."""
     block = free_block()
     devices = tmp_path / "devices.yaml"
     devices.write_text(DEVICES.read_text().replace("127.0.0.", f"127.0.{block}."))
     serve = Serve(tmp_path / "station.db", "--devices", str(devices), "--emulate")
+    watch = browser.new_context(viewport=WATCH, has_touch=True, is_mobile=True).new_page()
+    watch.set_default_timeout(15_000)
     try:
         serve.start()
         assert len(emulators_of(block)) == 8  # two UR controllers, six Modbus devices
-        with httpx.Client(base_url=serve.url, timeout=10) as browser:
-            sign_in_with_forms(browser, "engineer", first=True)
-            wait_for(lambda: devices_shown(browser) and all(devices_shown(browser).values()), 30)
-            assert set(devices_shown(browser)) == {
+        with httpx.Client(base_url=serve.url, timeout=10) as engineer:
+            sign_in_with_forms(engineer, "engineer", first=True)
+            wait_for(lambda: devices_shown(engineer) and all(devices_shown(engineer).values()), 30)
+            assert set(devices_shown(engineer)) == {
                 "r1", "r2", "r1_tc", "r2_tc", "r1_cam", "r2_cam", "nr", "plc", "operator_watch",
             }  # fmt: skip
-            page = browser.get("/simulation")
+            page = engineer.get("/simulation")
             assert page.status_code == 200
             assert "on the emulated devices" in page.text and "simulated world" not in page.text
             assert ">EMU</span>" in page.text and ">SIM</span>" not in page.text
-            form = {"experiment": "e5_r2_disconnects_clear", "csrf_token": form_token(page.text)}
-            assert browser.post("/simulation/experiment", data=form).status_code in (200, 303)
-            wait_for(lambda: devices_shown(browser)["r2"] is False, 30)
-            r2_unavailable = r'id="resource-r2"[^>]*class="is-error"'
-            wait_for(lambda: re.search(r2_unavailable, browser.get("/station").text), 10)
-            assert all(v for k, v in devices_shown(browser).items() if k != "r2")
+            sign_in_on_a_watch(watch, serve.url, "operator")
+
+            def state() -> dict[str, Any]:
+                answer: dict[str, Any] = engineer.get("/api/station").json()
+                return answer
+
+            start = state()["variables"]
+            form = {
+                "experiment": "e6_r2_disconnects_above_engine",
+                "csrf_token": form_token(page.text),
+            }
+            assert engineer.post("/simulation/experiment", data=form).status_code in (200, 303)
+            r2_cut: list[bool] = []
+
+            def watch_r2(kind: str, title: str, card: Any) -> None:
+                if kind == "instruction":  # by then r2 has stopped answering on its emulator
+                    r2_cut.append(devices_shown(engineer)["r2"] is False)
+                    r2_error = r'id="resource-r2"[^>]*class="is-error"'
+                    r2_cut.append(bool(re.search(r2_error, engineer.get("/station").text)))
+
+            done = lambda: state()["intentions"].get("tighten_bolts") == "f"  # noqa: E731
+            seen = operate(watch, done, watch_r2, seconds=180)
+            assert ("instruction", "Move r2 home by hand") in seen, seen
+            assert r2_cut == [True, True]
+            # the emulated nutrunner tightens only while a robot's emulated joints stand at a
+            # bolt pair: tightened bolts mean the robots moved there on ur_rtde's moveJ
+            end = state()["variables"]
+            assert start["bp1.state"] != "tightened"
+            assert all(end[f"bp{k}.state"] == "tightened" for k in range(1, 5))
+            assert end["r2.pos"] == "home"
+            assert all(v for k, v in devices_shown(engineer).items() if k != "r2")
     finally:
+        watch.context.close()
         serve.kill() if serve.process and serve.process.poll() is None else None
     wait_for(lambda: not emulators_of(block), 10)  # killed with -9: its emulators end too
