@@ -54,6 +54,7 @@ from hw.devices import DeviceReport
 from hw.emulation.control import ControlError
 from hw.link import LinkStatus
 from hw.ur import driver_child
+from hw.ur.emulated import free_block, on_block
 from planner.expressions import Value
 from planner.model import VariableKind
 from planner.operation_planner import OperationPlanner
@@ -85,23 +86,11 @@ class Bench:
     start: dict[str, Value]
 
 
-def free_block() -> int:
-    """A 127.0.N.x block where nothing listens on ur_rtde's fixed port."""
-    for block in range(120, 250):
-        with socket.socket() as probe:
-            try:
-                probe.bind((f"127.0.{block}.2", 30004))
-            except OSError:
-                continue
-        return block
-    raise RuntimeError("no free loopback block")
-
-
 @contextmanager
 def demo_station(answer_after: float = 1.0) -> Iterator[Bench]:
     """The demo station's emulators and devices, all connected; everything stopped after."""
     station = load_station(MODEL.read_text(), str(MODEL))
-    text = DEVICES.read_text().replace("127.0.0.", f"127.0.{free_block()}.")
+    text = on_block(DEVICES.read_text(), free_block(range(120, 250)))
     devices = load_devices(text, "demo_station.devices.yaml", station)
     start = start_values(station, {})
     with emulate(station, devices, start, answer_after=answer_after) as emulated:

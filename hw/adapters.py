@@ -52,19 +52,23 @@ class Adapter(Protocol):
 # -- robots ----------------------------------------------------------------------------------------
 
 
-class RobotDriver(Protocol):
-    """What a robot adapter needs of its driver (hw.ur.driver.URDriver)."""
+class Driver(Protocol):
+    """The life cycle and link every driver has."""
 
     def start(self) -> None: ...
 
     def close(self) -> None: ...
 
-    def latest(self) -> RobotSample | None: ...
-
     @property
     def available(self) -> bool: ...
 
     def status(self) -> LinkStatus: ...
+
+
+class RobotDriver(Driver, Protocol):
+    """What a robot adapter needs of its driver (hw.ur.driver.URDriver)."""
+
+    def latest(self) -> RobotSample | None: ...
 
     def move_j(self, q: tuple[float, ...], speed: float, acceleration: float) -> None: ...
 
@@ -169,19 +173,10 @@ class RobotAdapter:
 # -- Modbus devices --------------------------------------------------------------------------------
 
 
-class RegisterDriver(Protocol):
+class RegisterDriver(Driver, Protocol):
     """What a register adapter needs of its driver (hw.modbus.driver.ModbusDriver)."""
 
-    def start(self) -> None: ...
-
-    def close(self) -> None: ...
-
     def latest(self) -> RegisterSample | None: ...
-
-    @property
-    def available(self) -> bool: ...
-
-    def status(self) -> LinkStatus: ...
 
     def write(self, point: Point, value: Raw) -> None: ...
 

@@ -23,7 +23,13 @@ WATCH = {"width": 320, "height": 320}
 
 def sign_in(page: Any, station: RunningStation, name: str) -> None:
     """Through the login form, changing the first-login password."""
-    page.goto(station.url + "/login")
+    sign_in_first_time(page, station.url, name)
+    station.changed.add(name)
+
+
+def sign_in_first_time(page: Any, url: str, name: str) -> None:
+    """The login form, then the first-login password change, as a new user meets them."""
+    page.goto(url + "/login")
     page.fill("input[name=name]", name)
     page.fill("input[name=password]", PASSWORDS[name])
     page.locator("form[action='/login'] button[type=submit]").click()
@@ -32,7 +38,6 @@ def sign_in(page: Any, station: RunningStation, name: str) -> None:
     page.fill("input[name=repeat]", new_password(name))
     page.locator("form[action='/password'] button[type=submit]").click()
     page.wait_for_url(lambda url: not url.endswith(("/password", "/login")))
-    station.changed.add(name)
 
 
 def assert_fits_the_watch(page: Any) -> None:

@@ -10,7 +10,6 @@ Each experiment runs in its own `sp run` process on its own block of loopback ad
 from __future__ import annotations
 
 import json
-import socket
 import subprocess
 import sys
 from concurrent.futures import ThreadPoolExecutor
@@ -21,6 +20,7 @@ from typing import Any
 import pytest
 
 from app.scenario import load_scenario
+from hw.ur.emulated import free_block, on_block
 from planner.station import load_station
 from tests.test_runner import is_subsequence, matches
 
@@ -47,24 +47,9 @@ class Event:
         return cls(data.pop("kind"), data.pop("subject"), data)
 
 
-def free_block(taken: set[int]) -> int:
-    """A 127.0.N.0/24 block whose robot addresses' RTDE port is free (no stale emulator)."""
-    for block in range(40, 250):
-        if block in taken:
-            continue
-        with socket.socket() as probe:
-            try:
-                probe.bind((f"127.0.{block}.2", 30004))
-            except OSError:
-                continue
-        taken.add(block)
-        return block
-    raise RuntimeError("no free loopback block for the emulators")
-
-
 def play(name: str, block: int, directory: Path) -> tuple[list[Event], str]:
     devices = directory / f"{name}.devices.yaml"
-    devices.write_text(DEVICES.read_text().replace("127.0.0.", f"127.0.{block}."))
+    devices.write_text(on_block(DEVICES.read_text(), block))
     command = [sys.executable, "-m", "app.cli", "run", str(MODEL), "--json"]
     command += ["--scenario", str(SCENARIOS / f"{name}.yaml"), "--devices", str(devices)]
     done = subprocess.run(
@@ -77,7 +62,7 @@ def play(name: str, block: int, directory: Path) -> tuple[list[Event], str]:
 def played(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[list[Event], str]]:
     directory = tmp_path_factory.mktemp("devices")
     taken: set[int] = set()
-    blocks = {name: free_block(taken) for name in EXPERIMENTS}
+    blocks = {name: free_block(range(40, 250), taken) for name in EXPERIMENTS}
     with ThreadPoolExecutor(PARALLEL) as pool:
         runs = {name: pool.submit(play, name, blocks[name], directory) for name in EXPERIMENTS}
         return {name: run.result() for name, run in runs.items()}

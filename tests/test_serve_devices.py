@@ -6,7 +6,6 @@ from a watch in Chromium), and takes its emulators with it when it is killed."""
 from __future__ import annotations
 
 import re
-import socket
 import subprocess
 import time
 from pathlib import Path
@@ -14,22 +13,12 @@ from typing import Any
 
 import httpx
 
-from tests.stations import PASSWORDS, form_token, new_password, sign_in_with_forms
-from tests.test_browser_operator import WATCH, operate
+from hw.ur.emulated import free_block, on_block
+from tests.stations import form_token, sign_in_with_forms
+from tests.test_browser_operator import WATCH, operate, sign_in_first_time
 from tests.test_durability import ROOT, Serve
 
 DEVICES = ROOT / "models" / "demo_station.devices.yaml"
-
-
-def free_block() -> int:
-    for block in range(90, 120):
-        with socket.socket() as probe:
-            try:
-                probe.bind((f"127.0.{block}.2", 30004))
-            except OSError:
-                continue
-        return block
-    raise RuntimeError("no free loopback block")
 
 
 def devices_shown(browser: httpx.Client) -> dict[str, bool]:
@@ -54,27 +43,14 @@ def emulators_of(block: int) -> list[str]:
     return [line for line in ps.stdout.splitlines() if f"127.0.{block}." in line]
 
 
-def sign_in_on_a_watch(page: Any, url: str, name: str) -> None:
-    """Through the login form, changing the first-login password, as the operator would."""
-    page.goto(url + "/login")
-    page.fill("input[name=name]", name)
-    page.fill("input[name=password]", PASSWORDS[name])
-    page.locator("form[action='/login'] button[type=submit]").click()
-    page.wait_for_url("**/password")
-    page.fill("input[name=new_password]", new_password(name))
-    page.fill("input[name=repeat]", new_password(name))
-    page.locator("form[action='/password'] button[type=submit]").click()
-    page.wait_for_url(lambda url: not url.endswith(("/password", "/login")))
-
-
 def test_the_demo_station_runs_on_its_emulators_and_takes_them_along(
     tmp_path: Path, browser: Any
 ) -> None:
     """The README's walk-through on emulated devices: E6 played from the simulation panel cuts
     r2's network on its emulator, and the operator finishes it from a watch in Chromium."""
-    block = free_block()
+    block = free_block(range(90, 120))
     devices = tmp_path / "devices.yaml"
-    devices.write_text(DEVICES.read_text().replace("127.0.0.", f"127.0.{block}."))
+    devices.write_text(on_block(DEVICES.read_text(), block))
     serve = Serve(tmp_path / "station.db", "--devices", str(devices), "--emulate")
     watch = browser.new_context(viewport=WATCH, has_touch=True, is_mobile=True).new_page()
     watch.set_default_timeout(15_000)
@@ -91,7 +67,7 @@ def test_the_demo_station_runs_on_its_emulators_and_takes_them_along(
             assert page.status_code == 200
             assert "on the emulated devices" in page.text and "simulated world" not in page.text
             assert ">EMU</span>" in page.text and ">SIM</span>" not in page.text
-            sign_in_on_a_watch(watch, serve.url, "operator")
+            sign_in_first_time(watch, serve.url, "operator")
 
             def state() -> dict[str, Any]:
                 answer: dict[str, Any] = engineer.get("/api/station").json()

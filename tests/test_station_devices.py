@@ -10,7 +10,6 @@ frames) counts as not answering.
 
 from __future__ import annotations
 
-import socket
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -22,6 +21,7 @@ from app.emulated_station import EmulatedStation, emulate, start_values
 from app.station_cycle import StationCycle
 from hw.device_file import DeviceFile, load_devices
 from hw.faults import Fault, FaultKind
+from hw.ur.emulated import free_block, on_block
 from planner.operation_planner import OperationPlanner
 from planner.runner import Runner, RunnerConfig
 from planner.station import Station, load_station
@@ -32,17 +32,6 @@ MODEL = ROOT / "models" / "demo_station.yaml"
 DEVICES = ROOT / "models" / "demo_station.devices.yaml"
 CONFIG = RunnerConfig(heartbeat_timeout=1.0, auto_intentions=frozenset())
 PERIOD = 0.1
-
-
-def free_block() -> int:
-    for block in range(120, 250):
-        with socket.socket() as probe:
-            try:
-                probe.bind((f"127.0.{block}.2", 30004))
-            except OSError:
-                continue
-        return block
-    raise RuntimeError("no free loopback block")
 
 
 @dataclass
@@ -66,7 +55,7 @@ class Running:
 @pytest.fixture(scope="module")
 def running() -> Iterator[Running]:
     station = load_station(MODEL.read_text(), str(MODEL))
-    text = DEVICES.read_text().replace("127.0.0.", f"127.0.{free_block()}.")
+    text = on_block(DEVICES.read_text(), free_block(range(120, 250)))
     devices = load_devices(text, "demo.devices.yaml", station)
     start = start_values(station, {})
     with emulate(station, devices, start) as emulated:

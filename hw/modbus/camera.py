@@ -15,7 +15,7 @@ from collections.abc import Mapping
 from typing import Any, ClassVar
 
 from hw.modbus.logic import DeviceLogic, Shots
-from hw.modbus.registers import Kind, Point, Register, RegisterMap, Table
+from hw.modbus.registers import Kind, Point, Register, RegisterMap, Table, heartbeat, status_word
 
 STATUS_BITS = ("located", "missed", "busy")
 POSE = ("x", "y", "z", "rx", "ry", "rz")
@@ -53,20 +53,8 @@ CAMERA = RegisterMap(
             "missed", Point(Table.DISCRETE_INPUT, 1), Kind.BOOL, "the scan found nothing", False
         ),
         Register("busy", Point(Table.DISCRETE_INPUT, 2), Kind.BOOL, "scanning", False),
-        Register(
-            "heartbeat",
-            Point(Table.INPUT_REGISTER, 0),
-            Kind.COUNTER,
-            "counts up every 100 ms while the device's logic runs",
-        ),
-        Register(
-            "status",
-            Point(Table.INPUT_REGISTER, 1),
-            Kind.BITS,
-            "the discrete inputs as one word",
-            0,
-            codes=STATUS_BITS,
-        ),
+        heartbeat(),
+        status_word(STATUS_BITS, 0),
         *_pose_registers(),
         Register(
             "scans", Point(Table.INPUT_REGISTER, 8), Kind.COUNTER, "scans finished since power-on"

@@ -17,7 +17,7 @@ from collections.abc import Mapping
 from typing import Any, ClassVar
 
 from hw.modbus.logic import DeviceLogic, Shots
-from hw.modbus.registers import Kind, Point, Register, RegisterMap, Table
+from hw.modbus.registers import Kind, Point, Register, RegisterMap, Table, heartbeat, status_word
 
 STATUS_BITS = ("connected", "not_connected", "failure")
 
@@ -43,20 +43,8 @@ CONNECTOR = RegisterMap(
             "a lock failed; locking is blocked until a reset",
             False,
         ),
-        Register(
-            "heartbeat",
-            Point(Table.INPUT_REGISTER, 0),
-            Kind.COUNTER,
-            "counts up every 100 ms while the device's logic runs",
-        ),
-        Register(
-            "status",
-            Point(Table.INPUT_REGISTER, 1),
-            Kind.BITS,
-            "the discrete inputs as one word",
-            2,
-            codes=STATUS_BITS,
-        ),
+        heartbeat(),
+        status_word(STATUS_BITS, 2),
     ),
 )
 

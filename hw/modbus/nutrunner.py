@@ -20,7 +20,7 @@ from collections.abc import Mapping
 from typing import Any, ClassVar
 
 from hw.modbus.logic import DeviceLogic, Shots
-from hw.modbus.registers import Kind, Point, Register, RegisterMap, Table
+from hw.modbus.registers import Kind, Point, Register, RegisterMap, Table, heartbeat, status_word
 
 STATUS_BITS = ("is_idle", "is_running", "torque_reached", "nok")
 NOK_TORQUE = 0.6  # share of the target torque where a NOK tightening stops
@@ -58,20 +58,8 @@ NUTRUNNER = RegisterMap(
             low=0.0,
             high=100.0,
         ),
-        Register(
-            "heartbeat",
-            Point(Table.INPUT_REGISTER, 0),
-            Kind.COUNTER,
-            "counts up every 100 ms while the device's logic runs",
-        ),
-        Register(
-            "status",
-            Point(Table.INPUT_REGISTER, 1),
-            Kind.BITS,
-            "the discrete inputs as one word",
-            1,
-            codes=STATUS_BITS,
-        ),
+        heartbeat(),
+        status_word(STATUS_BITS, 1),
         Register(
             "torque",
             Point(Table.INPUT_REGISTER, 2),

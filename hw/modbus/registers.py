@@ -160,6 +160,30 @@ def decode(register: Register, word: int) -> bool | int | float | str:
     return word if register.scale == 1 else round(scaled, 6)
 
 
+def heartbeat() -> Register:
+    """Input register 0 of every device: the counter a driver watches to tell a device whose
+    logic froze from one that merely answers."""
+    return Register(
+        "heartbeat",
+        Point(Table.INPUT_REGISTER, 0),
+        Kind.COUNTER,
+        "counts up every 100 ms while the device's logic runs",
+    )
+
+
+def status_word(bits: tuple[str, ...], initial: int) -> Register:
+    """Input register 1: the device's discrete inputs as one word, for masters that read words
+    only (bit k is `bits[k]`)."""
+    return Register(
+        "status",
+        Point(Table.INPUT_REGISTER, 1),
+        Kind.BITS,
+        "the discrete inputs as one word",
+        initial,
+        codes=bits,
+    )
+
+
 @dataclass(frozen=True)
 class RegisterMap:
     """The registers of one device kind, by name and by point."""

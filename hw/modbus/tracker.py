@@ -8,7 +8,7 @@ The states are enumerations, coded 0, 1, 2 ... in the order of the model's domai
 from __future__ import annotations
 
 from hw.modbus.logic import DeviceLogic
-from hw.modbus.registers import Kind, Point, Register, RegisterMap, Table
+from hw.modbus.registers import Kind, Point, Register, RegisterMap, Table, heartbeat
 
 BOLT_PAIR = ("empty", "placed", "tightened")
 OIL_FILTER = ("none", "mounted", "tightened")
@@ -69,12 +69,7 @@ TRACKER = RegisterMap(
             "the kitting MiR is docked",
             True,
         ),
-        Register(
-            "heartbeat",
-            Point(Table.INPUT_REGISTER, 0),
-            Kind.COUNTER,
-            "counts up every 100 ms while the device's logic runs",
-        ),
+        heartbeat(),
         *_states(),
     ),
 )

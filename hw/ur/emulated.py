@@ -39,6 +39,24 @@ def host_range(first: int, last: int, prefix: str = "127.0.1.") -> list[str]:
     return [f"{prefix}{n}" for n in range(first, last + 1)]
 
 
+def free_block(blocks: Iterable[int], taken: set[int] | None = None) -> int:
+    """A block 127.0.N.0/24 (N in `blocks`, not in `taken`; added to it) whose robot address
+    127.0.N.2 has the UR client ports free: room for a device file moved there (`on_block`)."""
+    for block in blocks:
+        if taken is not None and block in taken:
+            continue
+        if all(port_free(f"127.0.{block}.2", port) for port in CLIENT_PORTS):
+            if taken is not None:
+                taken.add(block)
+            return block
+    raise RuntimeError("no free loopback block for the emulators")
+
+
+def on_block(device_file_text: str, block: int) -> str:
+    """A device file on 127.0.0.x (the demo's) moved to 127.0.N.x."""
+    return device_file_text.replace("127.0.0.", f"127.0.{block}.")
+
+
 @contextlib.contextmanager
 def emulate(host: str, *args: str, timeout: float = 15.0) -> Iterator[EmulatorProcess]:
     """A running emulator on `host` for the duration of the block."""
