@@ -1,22 +1,21 @@
-"""Users, roles, passwords (argon2), login throttling, CSRF tokens and API tokens."""
+"""Users, roles, permissions, passwords (argon2) and CSRF tokens.
+
+Sessions and API tokens are in app.user_sessions, sign-in throttling in app.throttle."""
 
 from __future__ import annotations
 
+import functools
 import hmac
 import secrets
 import time
-from collections import defaultdict, deque
-from collections.abc import Callable
-from dataclasses import dataclass
 from enum import StrEnum
 
 from argon2 import PasswordHasher
 from argon2.exceptions import InvalidHashError, VerificationError
-from itsdangerous import BadSignature, SignatureExpired, URLSafeTimedSerializer
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from app.store.tables import Setting, User
+from app.store.tables import User
 
 
 class Role(StrEnum):
@@ -66,7 +65,6 @@ DEMO_USERS = (
     ("admin", "admin", "admin-demo-1"),
 )
 MIN_PASSWORD = 10
-API_TOKEN_HOURS = 12
 
 _hasher = PasswordHasher()
 
@@ -80,6 +78,13 @@ def password_matches(stored: str, password: str) -> bool:
         return _hasher.verify(stored, password)
     except (VerificationError, InvalidHashError):
         return False
+
+
+@functools.cache
+def dummy_hash() -> str:
+    """A hash no password matches, checked for unknown user names: a sign-in takes as long
+    for a name that does not exist as for one that does."""
+    return hash_password(secrets.token_urlsafe(32))
 
 
 def password_problem(name: str, password: str) -> str:
@@ -126,75 +131,9 @@ def allowed(role: str, permission: Permission) -> bool:
     return known and permission in PERMISSIONS[Role(role)]
 
 
-def secret_key(session: Session) -> str:
-    """The key that signs session cookies and API tokens, made once per store."""
-    row = session.get(Setting, "secret_key")
-    if row is None:
-        row = Setting(key="secret_key", value=secrets.token_urlsafe(48))
-        session.add(row)
-        session.flush()
-    return row.value
-
-
 def new_csrf_token() -> str:
     return secrets.token_urlsafe(32)
 
 
 def same_token(expected: str | None, given: str | None) -> bool:
     return bool(expected) and bool(given) and hmac.compare_digest(str(expected), str(given))
-
-
-@dataclass
-class LoginThrottle:
-    """At most `limit` failed logins per user name and per client address in `window` seconds."""
-
-    limit: int = 5
-    window: float = 300.0
-    clock: Callable[[], float] = time.monotonic
-
-    def __post_init__(self) -> None:
-        self.failures: defaultdict[str, deque[float]] = defaultdict(deque)
-
-    def _recent(self, key: str) -> deque[float]:
-        times = self.failures[key]
-        while times and times[0] <= self.clock() - self.window:
-            times.popleft()
-        return times
-
-    def wait(self, name: str, address: str) -> float:
-        """Seconds until another attempt is allowed (0 when it is)."""
-        waits = []
-        for key in (f"user:{name.lower()}", f"address:{address}"):
-            times = self._recent(key)
-            if len(times) >= self.limit:
-                waits.append(times[0] + self.window - self.clock())
-        return max(waits, default=0.0)
-
-    def failed(self, name: str, address: str) -> None:
-        for key in (f"user:{name.lower()}", f"address:{address}"):
-            self._recent(key).append(self.clock())
-
-    def succeeded(self, name: str) -> None:
-        self.failures.pop(f"user:{name.lower()}", None)
-
-
-class ApiTokens:
-    """Bearer tokens for line systems (MES): signed, expiring, void after a password change."""
-
-    def __init__(self, key: str) -> None:
-        self.serializer = URLSafeTimedSerializer(key, salt="sequence-planner api token")
-
-    def issue(self, user: User) -> str:
-        return self.serializer.dumps({"user": user.id, "hash": user.password_hash[-16:]})
-
-    def user(self, session: Session, token: str) -> User | None:
-        try:
-            data = self.serializer.loads(token, max_age=API_TOKEN_HOURS * 3600)
-        except (BadSignature, SignatureExpired):
-            return None
-        if not isinstance(data, dict):
-            return None
-        user = session.get(User, data.get("user"))
-        if user is None or user.disabled or user.password_hash[-16:] != data.get("hash"):
-            return None
-        return user

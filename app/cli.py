@@ -135,6 +135,19 @@ def _parser() -> argparse.ArgumentParser:
     )
     serve.add_argument("--model", default="models/demo_station.yaml", help="model file (YAML)")
     serve.add_argument("--db", default="sqlite:///station.db", help="database URL")
+    serve.add_argument(
+        "--keys",
+        help="the station's key file, kept outside the database (default: beside a SQLite "
+        "file, or $SP_KEY_FILE); made at the first start",
+    )
+    serve.add_argument(
+        "--trusted-proxy",
+        action="append",
+        default=[],
+        metavar="ADDRESS",
+        help="a reverse proxy (address or network) whose X-Forwarded-For is believed; "
+        "none by default",
+    )
     serve.add_argument("--host", default="127.0.0.1")
     serve.add_argument("--port", type=int, default=8000)
     serve.add_argument("--period", type=float, default=0.1, help="runner tick period, seconds")
@@ -173,8 +186,14 @@ def _parser() -> argparse.ArgumentParser:
     )
     audit = commands.add_parser("audit", help="check the audit log")
     audit_commands = audit.add_subparsers(dest="audit_command", required=True)
-    verify = audit_commands.add_parser("verify", help="recompute the hash chain; exit 1 if broken")
+    verify = audit_commands.add_parser(
+        "verify",
+        help="check the audit log (chain, seals, checkpoints) and the users; exit 1 if not intact",
+    )
     verify.add_argument("--db", default="sqlite:///station.db", help="database URL")
+    verify.add_argument(
+        "--keys", help="the station's key file (default: beside a SQLite file, or $SP_KEY_FILE)"
+    )
     return parser
 
 

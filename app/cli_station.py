@@ -6,7 +6,9 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import gc
 import json
+import logging
 import time
 from collections.abc import Iterable
 from pathlib import Path
@@ -20,15 +22,14 @@ from planner.station import Station
 if TYPE_CHECKING:
     from app.live_station import DeviceSetup
     from app.scenario import Scenario
+    from app.serve import Built
     from hw.devices import Devices
 
 STARTUP_TIMEOUT = 30.0  # seconds for emulated devices to answer (robots power on first)
 
 
 def serve(args: argparse.Namespace) -> int:
-    import uvicorn
-
-    from app.serve import build, default_cache
+    from app.web import http_server
 
     model = Path(args.model)
     if not model.exists():
@@ -37,29 +38,60 @@ def serve(args: argparse.Namespace) -> int:
         raise UsageError("--period must be more than 0")
     if not 0 < args.speed <= 100:
         raise UsageError("--speed must be more than 0 and at most 100")
+    from app.store.keys import KeyFileError
+    from app.web.server import parse_networks
+
+    try:
+        parse_networks(args.trusted_proxy)
+    except ValueError as exc:
+        raise UsageError(f"--trusted-proxy: {exc}") from None
+    # warnings and errors on stderr, and the audit checkpoints: the station's own log
+    logging.basicConfig(level=logging.WARNING, format="%(asctime)s %(levelname)s %(message)s")
+    logging.getLogger("app.store.checkpoints").setLevel(logging.INFO)
     with contextlib.ExitStack() as stack:
         devices = _serve_devices(args, model, stack)
         print(f"starting the station on http://{args.host}:{args.port} (store: {args.db})")
-        built = build(
-            model,
-            args.db,
-            cache=None if args.no_cache else default_cache(),
-            period=args.period,
-            speed=args.speed,
-            secure_cookies=args.secure_cookies,
-            devices=devices,
-            simulated=devices is None or args.emulate,  # the simulation panel acts on emulators
-        )
+        try:
+            built = _build(args, model, devices)
+        except KeyFileError as exc:
+            raise UsageError(str(exc)) from None
         if built.seeded:
             print("demo users (first-login passwords; each must be changed on first sign-in):")
             for name, role, password in built.seeded:
                 print(f"  {name:<10} {role:<10} {password}")
-        built.server.live.start()
+        built.server.start()
+        freeze_what_start_up_built()
         try:
-            uvicorn.run(built.app, host=args.host, port=args.port, log_level="warning")
+            http_server.run(built.app, args.host, args.port)
         finally:
-            built.server.live.stop()
+            built.server.stop()
     return 0
+
+
+def freeze_what_start_up_built() -> None:
+    """What start-up built (the model, its planners, the templates: ~150,000 objects) is never
+    garbage: kept out of the collector's full collections, those take ~10 ms instead of
+    60-540 ms during which the GIL is held and the station loop cannot run (found with
+    `python -m bench.web_load`).  Model activation thaws and freezes again."""
+    gc.collect()
+    gc.freeze()
+
+
+def _build(args: argparse.Namespace, model: Path, devices: DeviceSetup | None) -> Built:
+    from app.serve import build, default_cache
+
+    return build(
+        model,
+        args.db,
+        cache=None if args.no_cache else default_cache(),
+        period=args.period,
+        speed=args.speed,
+        secure_cookies=args.secure_cookies,
+        devices=devices,
+        simulated=devices is None or args.emulate,  # the simulation panel acts on emulators
+        keys=Path(args.keys) if args.keys else None,
+        trusted_proxies=tuple(args.trusted_proxy),
+    )
 
 
 def _serve_devices(
@@ -165,18 +197,34 @@ def _print_events(args: argparse.Namespace, playing: Iterable[Event]) -> bool:
 
 
 def audit(args: argparse.Namespace) -> int:
-    from app.serve import audit_verify
-    from app.store.db import open_store
+    """`sp audit verify`: exit 0 when intact, 1 when not (or not checkable), 2 when the store
+    cannot be read; the findings in plain words, never a traceback."""
+    from sqlalchemy.exc import SQLAlchemyError
 
-    store = open_store(args.db)
-    count, problems, head = audit_verify(store)
-    for problem in problems:
-        print(f"tampered: {problem}")
-    if problems:
-        print(f"audit log BROKEN: {len(problems)} problem(s) in {count} records")
-        return 1
-    print(f"audit log intact: {count} records, newest hash {head}")
-    return 0
+    from app.store.db import open_store
+    from app.store.keys import KeyFileError, default_key_path, read_keys
+    from app.store.verification import describe, verify
+
+    try:
+        path = Path(args.keys) if args.keys else default_key_path(args.db)
+        keys = read_keys(path) if path is not None and path.exists() else None
+        store = open_store(args.db)
+        try:
+            report = verify(store, keys)
+        finally:
+            store.close()
+    except KeyFileError as exc:
+        print(f"cannot verify: {exc}")
+        return 2
+    except (SQLAlchemyError, OSError, ValueError) as exc:
+        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        print(f"cannot verify: the store at {args.db} cannot be read ({reason})")
+        return 2
+    if keys is None and path is not None:
+        report.notes.append(f"there is no key file at {path}")
+    for line in describe(report, keys.path if keys is not None else None):
+        print(line)
+    return 0 if report.intact else 1
 
 
 def emulate(args: argparse.Namespace) -> int:

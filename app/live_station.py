@@ -13,8 +13,10 @@ is on disk.
 from __future__ import annotations
 
 import asyncio
+import itertools
 import json
 import logging
+import math
 import queue
 import threading
 import time
@@ -56,6 +58,8 @@ from planner.station import Station
 log = logging.getLogger(__name__)
 
 RECENT_EVENTS = 200
+LOOP_HISTORY = 5000  # rounds kept for the loop's period summary (`loop_summary`): 500 s at 0.1 s
+LATE = 1.5  # a round that starts more than this many periods after the one before is late
 
 # The station's devices for a model, from its start values; with a scenario's delays when an
 # experiment is played (simulated devices only).
@@ -98,6 +102,22 @@ class _Request:
     future: Future[Any] = field(default_factory=Future)
 
 
+@dataclass(frozen=True)
+class Prepared:
+    """A model version ready to run: see `LiveStation.prepare`."""
+
+    model: ActiveModel
+    runner: Runner
+    worker: PlanningWorker | None
+    world: Devices | None
+
+    def discard(self) -> None:
+        if self.worker is not None:
+            self.worker.close()
+        if self.world is not None:
+            self.world.close()
+
+
 class LiveStation:
     """The runner loop of one station (see the module docstring)."""
 
@@ -135,6 +155,8 @@ class LiveStation:
         self.updates: PageUpdates[StationView] = PageUpdates()
         self.thread: threading.Thread | None = None
         self.stopping = threading.Event()
+        # each round's start (on `clock`) and duration: what `loop_summary` reports
+        self.rounds: deque[tuple[float, float]] = deque(maxlen=LOOP_HISTORY)
         self.experiment = ""
         self.version = 0
         now = self.now()
@@ -162,14 +184,17 @@ class LiveStation:
         file = f"model version {model.number}"
         return PlanningWorker(model.text, file, model.cache, delay=self.planning_delay)
 
-    def _runner(self, model: ActiveModel, config: RunnerConfig) -> Runner:
+    def _runner(
+        self, model: ActiveModel, config: RunnerConfig, worker: PlanningWorker | None = None
+    ) -> Runner:
+        """A runner for `model` whose queries go to `worker` (by default the station's)."""
         return Runner(
             model.station,
             model.transition_planner,
             model.operation_planner,
             config,
             time.perf_counter,
-            planning=self.worker,
+            planning=worker or self.worker,
         )
 
     # -- the loop -------------------------------------------------------------------------------
@@ -192,16 +217,58 @@ class LiveStation:
     def _loop(self) -> None:
         next_tick = self.clock()
         while not self.stopping.is_set():
+            started = self.clock()
             try:
                 self.round()
             except Exception:  # the loop must go on; the cause is logged and audited
                 log.exception("station round failed")
                 self._audit_now([AuditEntry("error", "station round failed")])
+            self.rounds.append((started, self.clock() - started))
             next_tick += self.period
             delay = next_tick - self.clock()
             if delay < 0:
                 next_tick = self.clock()
             self.stopping.wait(max(0.0, delay))
+
+    def loop_summary(self, since: float | None = None) -> dict[str, float | int]:
+        """How well the loop keeps its period, over the rounds kept (the last `LOOP_HISTORY`)
+        or those that started at or after station time `since` (`now()`'s seconds).
+
+        On the loop's clock: `period_ms` are the gaps between successive round starts,
+        `late` how many exceed `LATE` periods, `round_ms` the rounds' own durations (take,
+        tick, commit, notify); `now` is the station time of this summary, to pass as `since`
+        to a later one; `cpu_s` the loop thread's CPU seconds so far.  Computed on the
+        caller's thread: the loop itself only appends a start and a duration each round.
+        """
+        rounds = tuple(self.rounds)  # one copy, under the GIL: no lock in the loop
+        if since is not None:
+            rounds = tuple(r for r in rounds if r[0] >= self.started_at + since)
+        starts = [start for start, _ in rounds]
+        gaps = sorted(b - a for a, b in itertools.pairwise(starts))
+        took = sorted(duration for _, duration in rounds)
+        late = sum(1 for gap in gaps if gap > LATE * self.period)
+        return {
+            "now": round(self.now(), 3),
+            "rounds": len(starts),
+            "period_ms_p50": _ms(_percentile(gaps, 0.50)),
+            "period_ms_p99": _ms(_percentile(gaps, 0.99)),
+            "period_ms_max": _ms(gaps[-1] if gaps else 0.0),
+            "late": late,
+            "round_ms_p50": _ms(_percentile(took, 0.50)),
+            "round_ms_p99": _ms(_percentile(took, 0.99)),
+            "round_ms_max": _ms(took[-1] if took else 0.0),
+            "cpu_s": round(self._loop_cpu(), 3),
+        }
+
+    def _loop_cpu(self) -> float:
+        """The loop thread's CPU seconds (0 when it is not running or the OS cannot say)."""
+        thread = self.thread
+        if thread is None or thread.ident is None or not thread.is_alive():
+            return 0.0
+        try:
+            return time.clock_gettime(time.pthread_getcpuclockid(thread.ident))
+        except (AttributeError, OSError):  # not on Linux, or the thread just ended
+            return 0.0
 
     def round(self) -> None:
         """One round: take requests, step the station cycle, commit, then answer and notify."""
@@ -309,9 +376,10 @@ class LiveStation:
     def unshelve(self, key: str, user: str) -> Future[AlarmChange]:
         return self._submit("unshelve", key, user)
 
-    def activate(self, model: ActiveModel, user: str) -> Future[None]:
-        """Run another model version; refused unless the station is idle or in restart mode."""
-        return self._submit("activate", model, user)
+    def activate(self, prepared: Prepared, user: str) -> Future[None]:
+        """Run another model version (`prepare` it first); refused unless the station is idle
+        or in restart mode."""
+        return self._submit("activate", prepared, user)
 
     @property
     def on_emulators(self) -> bool:
@@ -386,27 +454,39 @@ class LiveStation:
             return "the station is running " + ", ".join(sorted(executing)[:5])
         return ""
 
+    def prepare(self, model: ActiveModel) -> Prepared:
+        """What running `model` needs that takes time (its runner, a planning worker, a
+        simulated world), made off the loop: the loop then only swaps (`activate`)."""
+        world = None
+        if isinstance(self.devices, SimulatedWorld):
+            world = self.setup(model.station, {}, None)
+        worker = self._worker(model)
+        return Prepared(model, self._runner(model, self.config, worker), worker, world)
+
     def _activate(
-        self, model: ActiveModel, now: float, user: str, entries: list[AuditEntry]
+        self, prepared: Prepared, now: float, user: str, entries: list[AuditEntry]
     ) -> None:
         why = self.busy()
         if why:
+            prepared.discard()
             raise StationError(f"{why}; activate when it is idle or in restart mode")
-        old = self.model
-        self.model = model
-        if self.worker is not None:
-            self.worker.close()
-        self.worker = self._worker(model)
-        runner = self._runner(model, self.config)
+        old, old_worker = self.model, self.worker
+        self.model, self.worker = prepared.model, prepared.worker
+        if old_worker is not None:  # its process may take a while to end: not in the loop
+            threading.Thread(target=old_worker.close, name="old-planning-worker").start()
+        runner = prepared.runner
         state = carry_over(self.state, runner, now)
-        if isinstance(self.devices, SimulatedWorld):
-            # the simulated world is rebuilt on the new model, keeping what it measured
-            variables = model.station.model.variable_index
+        if isinstance(self.devices, SimulatedWorld) and prepared.world is not None:
+            # the simulated world goes on in the new model, keeping what it measured
+            variables = prepared.model.station.model.variable_index
             world = {n: v for n, v in self.devices.values.items() if n in variables}
-            self.devices = self.setup(model.station, {**state.values, **world}, None)
+            self.devices.close()
+            self.devices = prepared.world
+            if isinstance(self.devices, Restorable):
+                self.devices.load({"values": {**state.values, **world}}, now)
         self.cycle = StationCycle(runner, self.devices, state)
-        records.set_active_version(self.store, self.name, model.version_id)
-        detail = {"version": model.number, "previous": old.number}
+        records.set_active_version(self.store, self.name, prepared.model.version_id)
+        detail = {"version": prepared.model.number, "previous": old.number}
         entries.append(AuditEntry("model", "activated", user, "", detail))
 
     def _start_experiment(
@@ -484,3 +564,14 @@ class LiveStation:
 
     def unsubscribe(self, changes: asyncio.Queue[str]) -> None:
         self.updates.unsubscribe(changes)
+
+
+def _percentile(ordered: list[float], share: float) -> float:
+    """The nearest-rank percentile of sorted values (0 when there are none)."""
+    if not ordered:
+        return 0.0
+    return ordered[max(0, math.ceil(share * len(ordered)) - 1)]
+
+
+def _ms(seconds: float) -> float:
+    return round(seconds * 1000.0, 2)

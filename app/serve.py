@@ -14,17 +14,24 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from fastapi import FastAPI
+from sqlalchemy.orm import Session
 
 from app import supervisor_cache
-from app.auth import ApiTokens, secret_key, seed_demo_users
+from app.auth import seed_demo_users
 from app.live_station import DeviceSetup, LiveStation
 from app.scenario import Scenario, ScenarioError, load_scenario
 from app.station_view import build_model
-from app.store import versions
-from app.store.db import Store, open_store
+from app.store import audit, versions
+from app.store.audit import AuditEntry
+from app.store.checkpoints import Checkpointer
+from app.store.db import open_store
+from app.store.keys import default_key_path
+from app.store.sealing import seal_store
+from app.throttle import SignInThrottle
+from app.user_sessions import ApiTokens
 from app.views import task_cards
 from app.web.app import create_app
-from app.web.server import ROOT, Server
+from app.web.server import ROOT, Server, parse_networks
 from hw.device_file import DeviceFile
 from hw.devices import Devices
 from hw.emulation.world import EmulatedWorld
@@ -56,19 +63,34 @@ def build(
     seed_users: bool = True,
     planning_delay: float = 0.0,
     devices: DeviceSetup | None = None,
+    keys: Path | None = None,
+    trusted_proxies: tuple[str, ...] = (),
+    checkpoint_period: float = 60.0,
 ) -> Built:
     """Open (and migrate) the store, load the active model, restore the station, make the app.
 
     `devices`: the station's devices (`on_devices`); by default the simulated world.
+    `keys`: the key file (app.store.keys; by default beside a SQLite file).
+    `trusted_proxies`: addresses (or networks) of reverse proxies whose X-Forwarded-For is
+    believed; none by default.
     """
     store = open_store(url)
     store.upgrade()
     text = model_path.read_text(encoding="utf-8")
     name = station_name or _station_name(text, model_path)
+    station_keys = seal_store(store, keys or default_key_path(url), name, time.time())
+
+    def seed(session: Session) -> list[tuple[str, str, str]]:
+        return seed_demo_users(session) if seed_users else []
+
+    def added(users: list[tuple[str, str, str]]) -> list[AuditEntry]:
+        return [
+            AuditEntry("user", "added", "sp serve", "", {"name": n, "role": r}) for n, r, _ in users
+        ]
+
+    seeded = audit.write(store, name, added, time.time(), also=seed) or []
     with store.sessions.begin() as session:
         version = versions.ensure_active(session, name, text, "sp serve")
-        seeded = seed_demo_users(session) if seed_users else []
-        key = secret_key(session)
     model = build_model(version, cache)
     live = LiveStation(
         store,
@@ -85,12 +107,16 @@ def build(
     server = Server(
         store,
         live,
-        ApiTokens(key),
+        ApiTokens(station_keys.cookie_secret),
         cache,
+        throttle=SignInThrottle(),
         experiments=experiments(model.station) if simulated else {},
         secure_cookies=secure_cookies,
+        trusted_proxies=parse_networks(trusted_proxies),
     )
-    return Built(create_app(server, key), server, seeded)
+    if station_keys.checkpoints is not None:
+        server.checkpoints = Checkpointer(store, name, period=checkpoint_period)
+    return Built(create_app(server, station_keys.cookie_secret), server, seeded)
 
 
 def on_devices(devices: DeviceFile, world: EmulatedWorld | None = None) -> DeviceSetup:
@@ -143,11 +169,3 @@ def experiments(station: Station) -> dict[str, tuple[str, Scenario]]:
             continue
         found[path.stem] = (TITLES.get(path.stem, path.stem), scenario)
     return found
-
-
-def audit_verify(store: Store) -> tuple[int, list[str], str]:
-    from app.store import audit
-
-    with store.sessions() as session:
-        result = audit.verify(audit.all_records(session))
-    return result.count, result.problems, result.head

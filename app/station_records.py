@@ -13,6 +13,7 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 from sqlalchemy import select
+from sqlalchemy.orm import Session
 
 from app.alarms import Alarm, AlarmBook, AlarmChange, AlarmState, Priority
 from app.store import audit
@@ -53,8 +54,9 @@ def commit(
     book: AlarmBook,
     wall: float,
 ) -> None:
-    """One round into the store, in one transaction."""
-    with store.sessions.begin() as session:
+    """One round into the store, in one transaction (the audit writer's)."""
+
+    def save(session: Session) -> None:
         record = session.get(StationRecord, station)
         if record is None:
             record = StationRecord(name=station, active_version_id=version_id)
@@ -72,8 +74,8 @@ def commit(
                     )
                 elif row.data != data:
                     row.data, row.updated_at = data, wall
-        if round_.entries:
-            audit.append(session, station, round_.entries, wall)
+
+    audit.write(store, station, round_.entries, wall, also=save)
 
 
 def set_active_version(store: Store, station: str, version_id: int) -> None:
@@ -152,4 +154,4 @@ def alarm_from_json(text: str) -> Alarm:
 
 def audit_committed(store: Store, station: str, entries: list[AuditEntry], wall: float) -> None:
     """Audit records in a transaction of their own (when a round could not commit)."""
-    audit.append_committed(store.sessions, station, entries, wall)
+    audit.write(store, station, entries, wall)

@@ -63,7 +63,8 @@ def sign_in(url: str) -> tuple[httpx.Cookies, str]:
         }
         client.post("/login", data=form)
         page = client.get("/password")
-        form = {"new_password": PASSWORD, "repeat": PASSWORD, "csrf_token": token_of(page.text)}
+        form = {"current_password": "engineer-demo-1", "new_password": PASSWORD, "repeat": PASSWORD}
+        form["csrf_token"] = token_of(page.text)
         client.post("/password", data=form)
         answer = client.post("/api/token", json={"name": "engineer", "password": PASSWORD})
         answer.raise_for_status()

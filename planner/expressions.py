@@ -4,6 +4,9 @@ Parsing happens in two stages so that every error can be located: the text is fi
 into a syntax tree that remembers character offsets, then names are resolved against the
 model's variables (and, for rich models, named predicates), which yields the typed `Expr`
 used everywhere else.  `!` binds tightest, then `&&`, `||`, `->` (right-associative).
+
+Nesting is bounded (`MAX_NESTING`, docs/models.md), so that a hostile or generated model is
+refused with a located error instead of overflowing the stack of whatever walks it later.
 """
 
 from __future__ import annotations
@@ -14,6 +17,11 @@ from dataclasses import dataclass
 
 Value = bool | str
 """A value of a variable's domain: `False`/`True` for booleans, a name for enumerations."""
+
+MAX_NESTING = 100
+"""How deep an expression may nest: far beyond any real guard, and shallow enough that every
+recursive walker over expressions (parser, resolution, formatting, the BDD and SAT compilers,
+the runner's predicates) stays well within Python's recursion limit."""
 
 
 class ExpressionError(Exception):
@@ -132,6 +140,42 @@ def negation(arg: Expr) -> Expr:
     return Not(arg)
 
 
+def _operands(expr: Expr) -> tuple[Expr, ...]:
+    match expr:
+        case Not(arg):
+            return (arg,)
+        case And(args) | Or(args):
+            return args
+        case Implies(left, right):
+            return (left, right)
+    return ()
+
+
+def depth(expr: Expr, measured: dict[int, tuple[Expr, int]] | None = None) -> int:
+    """How many operators deep `expr` nests (0 for a variable or constant).
+
+    Iterative, so that it can measure what is too deep to walk recursively.  `measured` (id ->
+    the node and its depth; holding the node keeps its id from being another's) carries what
+    was measured from call to call: the guards that name one large predicate walk it once.
+    """
+    known = {} if measured is None else measured
+    todo = [expr]
+    while todo:
+        node = todo[-1]
+        entry = known.get(id(node))
+        if entry is not None and entry[0] is node:
+            todo.pop()
+            continue
+        operands = _operands(node)
+        waiting = [o for o in operands if (e := known.get(id(o))) is None or e[0] is not o]
+        if waiting:
+            todo.extend(waiting)
+            continue
+        todo.pop()
+        known[id(node)] = (node, 1 + max(known[id(o)][1] for o in operands) if operands else 0)
+    return known[id(expr)][1]
+
+
 def variables_of(expr: Expr) -> frozenset[str]:
     """The variables an expression reads."""
     match expr:
@@ -234,10 +278,8 @@ class _Token:
 
 def _tokenize(text: str) -> list[_Token]:
     tokens: list[_Token] = []
-    pos = 0
-    while pos < len(text):
-        if text[pos:].strip() == "":
-            break
+    pos, end = 0, len(text.rstrip())  # not text[pos:].strip() per token: quadratic
+    while pos < end:
         match = _TOKEN.match(text, pos)
         if match is None or match.end() == pos:
             start = pos + len(text[pos:]) - len(text[pos:].lstrip())
@@ -278,6 +320,15 @@ class _Parser:
     def __init__(self, text: str) -> None:
         self.tokens = _tokenize(text)
         self.index = 0
+        self.depth = 0  # open '(', '!' and '->' around the current token: the recursion depth
+
+    def deeper(self, token: _Token) -> None:
+        self.depth += 1
+        if self.depth > MAX_NESTING:
+            raise ExpressionError(
+                f"nested more than {MAX_NESTING} deep (each '(', '!' and '->' opens a level)",
+                token.offset,
+            )
 
     @property
     def current(self) -> _Token:
@@ -296,9 +347,11 @@ class _Parser:
     def implication(self) -> SyntaxNode:
         left = self.disjunction()
         if self.current.text == "->":
-            offset = self.take().offset
+            arrow = self.take()
+            self.deeper(arrow)
             right = self.implication()
-            return SyntaxNode("->", offset, (left, right))
+            self.depth -= 1
+            return SyntaxNode("->", arrow.offset, (left, right))
         return left
 
     def disjunction(self) -> SyntaxNode:
@@ -319,9 +372,13 @@ class _Parser:
         token = self.current
         if token.text == "!":
             self.take()
-            return SyntaxNode("!", token.offset, (self.unary(),))
+            self.deeper(token)
+            arg = self.unary()
+            self.depth -= 1
+            return SyntaxNode("!", token.offset, (arg,))
         if token.text == "(":
             self.take()
+            self.deeper(token)
             inner = self.implication()
             if self.current.text != ")":
                 raise ExpressionError(
@@ -330,6 +387,7 @@ class _Parser:
                     self.current.offset,
                 )
             self.take()
+            self.depth -= 1
             return inner
         if token.kind in ("name", "number"):
             self.take()
@@ -407,6 +465,7 @@ class Scope:
         self.predicates = predicates or {}
         self.suggest = suggest or (lambda name: None)
         self.aliases = aliases or {}
+        self.depths: dict[int, tuple[Expr, int]] = {}  # the predicates' `depth`s, as measured
 
     def canonical(self, word: Word) -> Word:
         """The word with a local name (a resource's `ref`) replaced by its global name."""
@@ -441,25 +500,62 @@ class Scope:
 
 
 def resolve(node: SyntaxNode, scope: Scope) -> Expr:
-    """Turn a syntax tree into a typed expression, checking names, values and types."""
+    """Turn a syntax tree into a typed expression, checking names, values, types and depth:
+    named predicates stand for their expressions, so the parser alone cannot bound it."""
+    expr, levels = _resolve(node, scope)
+    if levels > MAX_NESTING:
+        raise ExpressionError(
+            f"nested more than {MAX_NESTING} deep ({levels} operators, counting those of the "
+            "predicates it names)",
+            0,  # the whole expression is too deep, not one place in it
+        )
+    return expr
+
+
+def _resolve(node: SyntaxNode, scope: Scope) -> tuple[Expr, int]:
+    """The typed expression and its `depth`, counted as it is built: walking the result would
+    cost a guard that names a predicate of 10,000 conjuncts those 10,000 again."""
     match node.op:
         case "!":
-            return negation(resolve(node.args[0], scope))
-        case "&&":
-            return conjunction([resolve(a, scope) for a in node.args])
-        case "||":
-            return disjunction([resolve(a, scope) for a in node.args])
+            arg, levels = _resolve(node.args[0], scope)
+            if isinstance(arg, Const):
+                return negation(arg), 0
+            return negation(arg), levels - 1 if isinstance(arg, Not) else levels + 1
+        case "&&" | "||":
+            parts = [_resolve(a, scope) for a in node.args]
+            join = conjunction if node.op == "&&" else disjunction
+            expr = join([part for part, _ in parts])
+            return expr, _joined_depth(expr, parts)
         case "->":
-            return Implies(resolve(node.args[0], scope), resolve(node.args[1], scope))
+            (left, on_left), (right, on_right) = (_resolve(a, scope) for a in node.args)
+            return Implies(left, right), 1 + max(on_left, on_right)
         case "word":
             assert node.word is not None
-            return _resolve_word(scope.canonical(node.word), scope)
+            expr = _resolve_word(scope.canonical(node.word), scope)
+            return expr, depth(expr, scope.depths)  # a predicate is measured once per scope
         case "cmp":
             assert node.word is not None and node.right is not None
-            left, right = scope.canonical(node.word), scope.canonical(node.right)
-            result = _resolve_comparison(left, right, scope)
-            return negation(result) if node.compare == "!=" else result
+            left_word, right_word = scope.canonical(node.word), scope.canonical(node.right)
+            expr = _resolve_comparison(left_word, right_word, scope)
+            expr = negation(expr) if node.compare == "!=" else expr
+            return expr, int(isinstance(expr, Not))  # a variable, value or pair, or its negation
     raise AssertionError(node.op)
+
+
+def _joined_depth(joined: Expr, parts: list[tuple[Expr, int]]) -> int:
+    """The depth of `conjunction(parts)` or `disjunction(parts)` from the parts' depths: they
+    drop constants and flatten parts of their own kind by one level."""
+    for part, levels in parts:
+        if part is joined:
+            return levels
+    if isinstance(joined, Const):
+        return 0
+    kind = type(joined)
+    return 1 + max(
+        levels - 1 if isinstance(part, kind) else levels
+        for part, levels in parts
+        if not isinstance(part, Const)
+    )
 
 
 def _resolve_word(word: Word, scope: Scope) -> Expr:

@@ -46,6 +46,10 @@ except AttributeError:  # pragma: no cover
 
 T = TypeVar("T")
 
+MAX_YAML_NESTING = 100
+"""Lists and mappings nested deeper are refused: a model needs about 8 levels, and libyaml's
+composer recurses in C, so that `[[[[...` 100,000 deep kills the process (editor included)."""
+
 
 @dataclass(frozen=True, slots=True)
 class Diagnostic:
@@ -128,6 +132,7 @@ class Reader:
     # -- structure -----------------------------------------------------------------------------
 
     def compose(self) -> yaml.Node | None:
+        self.check_nesting()
         try:
             return yaml.compose(self.text, Loader=_Loader)  # type: ignore[no-any-return]
         except yaml.MarkedYAMLError as exc:
@@ -142,6 +147,24 @@ class Reader:
             raise ModelError(
                 [Diagnostic(SourceLocation(self.file, 1, 1), f"YAML: {exc}")]
             ) from None
+
+    def check_nesting(self) -> None:
+        """Refuse nesting beyond `MAX_YAML_NESTING` from the parser's events (a flat stream,
+        no recursion), before the composer sees it; other YAML errors are left to it."""
+        level = 0
+        try:
+            for event in yaml.parse(self.text, Loader=_Loader):
+                if isinstance(event, yaml.CollectionStartEvent):
+                    level += 1
+                    if level > MAX_YAML_NESTING:
+                        mark = event.start_mark
+                        where = SourceLocation(self.file, mark.line + 1, mark.column + 1)
+                        message = f"lists and mappings nested more than {MAX_YAML_NESTING} deep"
+                        raise ModelError([Diagnostic(where, f"YAML: {message}")])
+                elif isinstance(event, yaml.CollectionEndEvent):
+                    level -= 1
+        except yaml.YAMLError:
+            return
 
     def mapping(
         self, node: yaml.Node, what: str, allowed: Iterable[str], required: Iterable[str] = ()

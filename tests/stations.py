@@ -18,6 +18,7 @@ from fastapi.testclient import TestClient
 
 from app.serve import Built, build, default_cache
 from app.store.db import sqlite_url
+from app.web import http_server
 
 ROOT = Path(__file__).resolve().parent.parent
 MODEL = ROOT / "models" / "demo_station.yaml"
@@ -55,7 +56,8 @@ def sign_in_with_forms(client: httpx.Client, name: str, first: bool) -> None:
     assert (response.headers["location"] == "/password") == first
     if first:
         page = client.get("/password")
-        form = {"new_password": new_password(name), "repeat": new_password(name)}
+        form = {"current_password": PASSWORDS[name], "new_password": new_password(name)}
+        form["repeat"] = new_password(name)
         form["csrf_token"] = form_token(page.text)
         response = client.post("/password", data=form, follow_redirects=False)
         assert response.status_code == 303, response.text
@@ -100,10 +102,11 @@ class RunningStation:
                 raise AssertionError(f"not reached within {seconds} s")
             time.sleep(0.05)
 
-    def serve(self) -> str:
-        """Serve the app with uvicorn on an ephemeral port of 127.0.0.1."""
+    def serve(self, head_timeout: float = http_server.HEAD_TIMEOUT) -> str:
+        """Serve the app as `sp serve` does (app.web.http_server) on an ephemeral port of
+        127.0.0.1."""
         port = free_port()
-        config = uvicorn.Config(self.built.app, host="127.0.0.1", port=port, log_level="warning")
+        config = http_server.config(self.built.app, "127.0.0.1", port, head_timeout=head_timeout)
         self.uvicorn_server = uvicorn.Server(config)
         self.thread = threading.Thread(target=self.uvicorn_server.run, daemon=True)
         self.thread.start()
@@ -116,7 +119,7 @@ class RunningStation:
             self.uvicorn_server.should_exit = True
             if self.thread is not None:
                 self.thread.join(timeout=10)
-        self.live.stop()
+        self.built.server.stop()
         self.built.server.store.close()
 
 
@@ -135,5 +138,5 @@ def start_station(
         planning_delay=planning_delay,
     )
     station = RunningStation(built, db)
-    station.live.start()
+    built.server.start()
     return station

@@ -65,7 +65,7 @@ def test_without_a_valid_token_the_api_answers_401(client: TestClient) -> None:
     bad = {"Authorization": "Bearer not-a-token"}
     response = client.get("/api/tasks", headers=bad)
     assert response.status_code == 401
-    assert "invalid or expired" in response.json()["detail"]
+    assert "invalid, expired or revoked" in response.json()["detail"]
 
 
 def test_roles_limit_what_a_caller_may_do(

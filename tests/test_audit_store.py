@@ -1,5 +1,6 @@
 """The audit log's hash chain: intact after appends, and `sp audit verify` names what an
-attacker with write access to the database changed, inserted or removed."""
+attacker with write access to the database changed, inserted or removed.  (Forgery,
+re-chaining, truncation and the users table: tests/test_security_audit.py.)"""
 
 from __future__ import annotations
 
@@ -13,23 +14,35 @@ from sqlalchemy.exc import DBAPIError
 
 from app.store import audit
 from app.store.audit import AuditEntry
-from app.store.db import open_store, sqlite_url
+from app.store.checkpoints import Checkpointer
+from app.store.db import Store, open_store, sqlite_url
+from app.store.sealing import seal_store
+from app.store.verification import verify as verify_store
 
 ROOT = Path(__file__).resolve().parent.parent
 
 
-@pytest.fixture
-def db(tmp_path: Path) -> Path:
-    path = tmp_path / "audit.db"
+def sealed_store(path: Path) -> Store:
+    """A store as `sp serve` opens it: migrated, its key file beside it, sealed (one record)."""
     store = open_store(sqlite_url(path))
     store.upgrade()
+    seal_store(store, path.with_name(path.name + ".key"), "demo", 1_700_000_000.0)
+    return store
+
+
+@pytest.fixture
+def db(tmp_path: Path) -> Path:
+    """A sealed log of 21 records: the seal, then 20 actions."""
+    path = tmp_path / "audit.db"
+    store = sealed_store(path)
     for k in range(20):
-        audit.append_committed(
-            store.sessions,
+        audit.write(
+            store,
             "demo",
             [AuditEntry("operator", f"action {k}", "engineer", "r1", {"k": k})],
             1_700_000_000.0 + k,
         )
+    Checkpointer(store, "demo").checkpoint()  # as the station does every minute
     store.close()
     return path
 
@@ -55,7 +68,7 @@ def tamper(db: Path, *statements: str) -> None:
 def test_an_intact_log_verifies(db: Path) -> None:
     result = verify(db)
     assert result.returncode == 0, result.stdout
-    assert "intact: 20 records" in result.stdout
+    assert "audit log intact: 21 records" in result.stdout
 
 
 def test_the_database_refuses_updates_and_deletes(db: Path) -> None:
@@ -71,7 +84,7 @@ def test_the_database_refuses_updates_and_deletes(db: Path) -> None:
     [
         ("UPDATE audit SET user = 'someone else' WHERE id = 7", "record 7: its content"),
         ("UPDATE audit SET detail = '{\"k\":99}' WHERE id = 12", "record 12: its content"),
-        ("DELETE FROM audit WHERE id = 5", "record 6: expected id 5"),
+        ("DELETE FROM audit WHERE id = 5", "record 5 missing"),
         ("UPDATE audit SET time = time + 1 WHERE id = 1", "record 1: its content"),
     ],
 )
@@ -80,7 +93,7 @@ def test_verify_names_the_tampered_record(db: Path, statement: str, problem: str
     result = verify(db)
     assert result.returncode == 1
     assert problem in result.stdout, result.stdout
-    assert "BROKEN" in result.stdout
+    assert "NOT intact" in result.stdout
 
 
 def test_a_rewritten_record_with_a_fresh_hash_still_breaks_the_chain(db: Path) -> None:
@@ -97,19 +110,18 @@ def test_a_rewritten_record_with_a_fresh_hash_still_breaks_the_chain(db: Path) -
     tamper(db, f"UPDATE audit SET user = 'nobody', hash = '{forged}' WHERE id = 9")
     result = verify(db)
     assert result.returncode == 1
-    assert "record 10: its previous hash does not match" in result.stdout
+    assert "record 10: does not follow the record before it" in result.stdout
 
 
 def test_appends_chain_onto_the_newest_record(tmp_path: Path) -> None:
     store = open_store(sqlite_url(tmp_path / "a.db"))
     store.upgrade()
     with store.sessions.begin() as session:
-        first = audit.append(session, "s", [AuditEntry("a"), AuditEntry("b")], 1.0)
+        first = audit.append(session, "s", [AuditEntry("a"), AuditEntry("b")], 1.0, None)
     with store.sessions.begin() as session:
-        (third,) = audit.append(session, "s", [AuditEntry("c")], 2.0)
+        (third,) = audit.append(session, "s", [AuditEntry("c")], 2.0, None)
     assert [r.id for r in first] == [1, 2] and third.id == 3
     assert first[0].previous == audit.GENESIS
     assert first[1].previous == first[0].hash and third.previous == first[1].hash
-    with store.sessions() as session:
-        assert audit.verify(audit.all_records(session)).intact
+    assert verify_store(store, None).intact
     store.close()

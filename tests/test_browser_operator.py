@@ -34,6 +34,7 @@ def sign_in_first_time(page: Any, url: str, name: str) -> None:
     page.fill("input[name=password]", PASSWORDS[name])
     page.locator("form[action='/login'] button[type=submit]").click()
     page.wait_for_url("**/password")
+    page.fill("input[name=current_password]", PASSWORDS[name])
     page.fill("input[name=new_password]", new_password(name))
     page.fill("input[name=repeat]", new_password(name))
     page.locator("form[action='/password'] button[type=submit]").click()

@@ -39,7 +39,7 @@ def station(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RunningStation
     running = start_station(Path(tmp_path_factory.mktemp("audit")))
     srv = running.built.server
     for i in range(RECORDS):
-        audit.append_committed(srv.store.sessions, srv.live.name, [entry(i)], BASE + 60 * i)
+        audit.write(srv.store, srv.live.name, [entry(i)], BASE + 60 * i)
     yield running
     running.stop()
 

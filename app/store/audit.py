@@ -1,8 +1,14 @@
-"""The append-only audit log: every event that matters, with a hash chain.
+"""The append-only audit log: every event that matters, with a sealed hash chain.
 
 Each record's hash covers its id, its fields and the hash of the record before it, so a
-changed, inserted or removed record breaks the chain from that point on (`sp audit verify`).
-There is deliberately no update or delete function here; the database refuses both as well.
+changed, inserted or removed record breaks the chain from that point on; its seal (an HMAC
+of the hash under the station's key, app.store.seals) makes a chain recomputed by someone
+without the key show (`sp audit verify`, app.store.verification).  There is deliberately no
+update or delete function here; the database refuses both as well.
+
+All writes of a process go through `write`: it holds the store's audit lock from choosing
+the next id until the commit, so writers never race for an id; another process writing the
+same database (a shared PostgreSQL) loses such a race at its commit and tries again.
 """
 
 from __future__ import annotations
@@ -11,15 +17,21 @@ import csv
 import hashlib
 import io
 import json
-from collections.abc import Iterable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TypeVar
 
 from sqlalchemy import Select, func, select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
+from app.store.db import Store
+from app.store.keys import StationKeys
+from app.store.seals import record_mac
 from app.store.tables import AuditRecord
+
+T = TypeVar("T")
+ATTEMPTS = 5  # commits lost to another process's writer before giving up
 
 GENESIS = "0" * 64
 PAGE_SIZE = 100
@@ -58,14 +70,15 @@ def record_hash(
 
 
 def append(
-    session: Session, station: str, entries: Sequence[AuditEntry], now: float
+    session: Session,
+    station: str,
+    entries: Sequence[AuditEntry],
+    now: float,
+    keys: StationKeys | None,
 ) -> list[AuditRecord]:
-    """Add `entries` after the newest record, in the caller's transaction.
-
-    Ids are given here (the newest + 1) so that they are part of the hash; two writers that
-    race for the same id collide on the primary key, and the loser's commit fails rather than
-    forking the chain.
-    """
+    """Add `entries` after the newest record, in the caller's transaction (use `write`,
+    which holds the audit lock around it).  Ids are given here (the newest + 1) so that
+    they are part of the hash."""
     last = session.execute(
         select(AuditRecord.id, AuditRecord.hash).order_by(AuditRecord.id.desc()).limit(1)
     ).first()
@@ -81,13 +94,14 @@ def append(
             id=next_id,
             time=now,
             station=station,
-            user=entry.user,
+            user=entry.user[:64],
             kind=entry.kind,
             subject=subject,
             resource=entry.resource,
             detail=detail,
             previous=previous,
             hash=digest,
+            mac=record_mac(keys, digest) if keys is not None else "",
         )
         session.add(record)
         records.append(record)
@@ -95,18 +109,29 @@ def append(
     return records
 
 
-def append_committed(
-    sessions: Any, station: str, entries: Sequence[AuditEntry], now: float, attempts: int = 5
-) -> list[AuditRecord]:
-    """Append in a transaction of its own, retrying when another writer took the same id."""
-    for attempt in range(attempts):
+def write(
+    store: Store,
+    station: str,
+    entries: Sequence[AuditEntry] | Callable[[T], Sequence[AuditEntry]],
+    now: float,
+    also: Callable[[Session], T] | None = None,
+) -> T | None:
+    """One transaction: `also(session)` (the change the entries record, if any), then the
+    entries (or what `entries` makes of also's result), committed together.  An exception
+    from `also` rolls both back and propagates."""
+    for attempt in range(ATTEMPTS):
         try:
-            with sessions.begin() as session:
-                return append(session, station, entries, now)
+            with store.audit_lock, store.sessions.begin() as session:
+                result = also(session) if also is not None else None
+                made = entries(result) if callable(entries) else entries  # type: ignore[arg-type]
+                if made:
+                    append(session, station, made, now, store.keys)
+            return result
         except IntegrityError:
-            if attempt == attempts - 1:
+            store.audit_conflicts += 1
+            if attempt == ATTEMPTS - 1:
                 raise
-    return []
+    return None
 
 
 @dataclass(frozen=True)
@@ -178,55 +203,24 @@ def csv_lines(session: Session, where: AuditFilter, batch: int = 1000) -> Iterat
         if not rows:
             return
         for r in rows:
-            writer.writerow(
-                [
-                    r.id,
-                    _iso(r.time),
-                    r.station,
-                    r.user,
-                    r.kind,
-                    r.subject,
-                    r.resource,
-                    r.detail,
-                    r.hash,
-                ]
-            )
+            text = (r.station, r.user, r.kind, r.subject, r.resource, r.detail)
+            writer.writerow([r.id, _iso(r.time), *map(spreadsheet_safe, text), r.hash])
         last_id = rows[-1].id
+
+
+FORMULA_STARTS = ("=", "+", "-", "@", "\t", "\r")
+
+
+def spreadsheet_safe(cell: str) -> str:
+    """A cell a spreadsheet will not run as a formula: one that could start one (a user name
+    such as `=HYPERLINK(...)`) gets a leading apostrophe, as OWASP advises for CSV."""
+    return "'" + cell if cell.startswith(FORMULA_STARTS) else cell
 
 
 def _iso(time: float) -> str:
     from datetime import UTC, datetime
 
     return datetime.fromtimestamp(time, UTC).isoformat(timespec="milliseconds")
-
-
-@dataclass(frozen=True)
-class Verification:
-    count: int
-    problems: list[str]
-    head: str  # the newest hash: write it down to detect a cut-off tail later
-
-    @property
-    def intact(self) -> bool:
-        return not self.problems
-
-
-def verify(records: Iterable[AuditRecord]) -> Verification:
-    """Recompute the chain over `records` in id order; name each record that does not fit."""
-    previous, expected_id, count, problems = GENESIS, 1, 0, []
-    for r in records:
-        count += 1
-        if r.id != expected_id:
-            problems.append(f"record {r.id}: expected id {expected_id} (records missing)")
-        if r.previous != previous:
-            problems.append(f"record {r.id}: its previous hash does not match record {r.id - 1}")
-        digest = record_hash(
-            r.id, r.time, r.station, r.user, r.kind, r.subject, r.resource, r.detail, r.previous
-        )
-        if digest != r.hash:
-            problems.append(f"record {r.id}: its content does not match its hash (changed)")
-        previous, expected_id = r.hash, r.id + 1
-    return Verification(count, problems, previous)
 
 
 def all_records(session: Session, batch: int = 5000) -> Iterator[AuditRecord]:

@@ -3,14 +3,18 @@
 from __future__ import annotations
 
 import sqlite3
-from dataclasses import dataclass
+import threading
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from alembic import command
 from alembic.config import Config
 from sqlalchemy import Engine, create_engine, event
 from sqlalchemy.orm import Session, sessionmaker
+
+if TYPE_CHECKING:
+    from app.store.keys import StationKeys
 
 MIGRATIONS = Path(__file__).resolve().parents[2] / "migrations"
 
@@ -21,11 +25,19 @@ def sqlite_url(path: str | Path) -> str:
 
 @dataclass
 class Store:
-    """The engine and a session factory; `upgrade()` brings the schema to the newest version."""
+    """The engine and a session factory; `upgrade()` brings the schema to the newest version.
+
+    `keys`: the station's keys once `app.store.sealing.seal_store` has opened them (audit
+    records and user rows are sealed with them); `audit_lock`: held by the one audit writer
+    of the process (`app.store.audit.write`) from choosing the next id until the commit.
+    """
 
     url: str
     engine: Engine
     sessions: sessionmaker[Session]
+    keys: StationKeys | None = None
+    audit_lock: threading.Lock = field(default_factory=threading.Lock)
+    audit_conflicts: int = 0  # commits lost to another writer (of another process) and retried
 
     def upgrade(self) -> None:
         config = Config()

@@ -25,6 +25,27 @@ class User(Base):
     must_change_password: Mapped[bool] = mapped_column(Boolean, default=True)
     disabled: Mapped[bool] = mapped_column(Boolean, default=False)
     created_at: Mapped[float] = mapped_column(Float)
+    # HMAC of the row under the station's key (app.store.seals): a row changed outside the
+    # station no longer matches and is refused
+    mac: Mapped[str] = mapped_column(String(64), default="")
+
+
+class UserSession(Base):
+    """A signed-in browser or API token, kept so that it can be revoked (logout, password
+    change, disable).  `id` is the SHA-256 of the secret the cookie or token carries."""
+
+    __tablename__ = "user_sessions"
+
+    id: Mapped[str] = mapped_column(String(64), primary_key=True)
+    user_id: Mapped[int] = mapped_column(ForeignKey("users.id"))
+    kind: Mapped[str] = mapped_column(String(16))  # browser | api
+    created_at: Mapped[float] = mapped_column(Float)
+    expires_at: Mapped[float] = mapped_column(Float)
+    revoked_at: Mapped[float | None] = mapped_column(Float, default=None)
+    revoked_why: Mapped[str] = mapped_column(String(64), default="")
+    address: Mapped[str] = mapped_column(String(64), default="")
+
+    __table_args__ = (Index("ix_user_sessions_user", "user_id"),)
 
 
 class ModelVersion(Base):
@@ -83,6 +104,8 @@ class AuditRecord(Base):
     detail: Mapped[str] = mapped_column(Text, default="{}")  # JSON
     previous: Mapped[str] = mapped_column(String(64))  # hash of the record before ("0"*64 first)
     hash: Mapped[str] = mapped_column(String(64))
+    # HMAC of `hash` under the station's key: "" only for records from before the key existed
+    mac: Mapped[str] = mapped_column(String(64), default="")
 
     __table_args__ = (
         Index("ix_audit_time", "time"),
@@ -93,7 +116,8 @@ class AuditRecord(Base):
 
 
 class Setting(Base):
-    """Station-wide secrets and settings (the session signing key)."""
+    """Station-wide settings.  (Its old `secret_key` row is no longer used: the keys are in
+    the key file, app.store.keys.)"""
 
     __tablename__ = "settings"
 

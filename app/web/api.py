@@ -428,6 +428,7 @@ def get_model(
     "/models",
     tags=["models"],
     summary="Save a model text as a new version",
+    max_body_size=model_editing.MODEL_BODY_BYTES,
     status_code=201,
     response_model=ModelSaved,
     responses={

@@ -13,9 +13,11 @@ from starlette.middleware.sessions import SessionMiddleware
 from app.live_station import StationError
 from app.web import auth_routes, events, operator
 from app.web.deps import LoginRequired, PasswordChangeRequired, is_api, page_context
+from app.web.headers import SecurityHeaders
 from app.web.server import STATIC, Server
 
 log = logging.getLogger(__name__)
+BODY_BYTES = 1024 * 1024  # a request body past this is refused (413) before it is parsed
 
 
 def create_app(srv: Server, secret: str) -> FastAPI:
@@ -23,6 +25,7 @@ def create_app(srv: Server, secret: str) -> FastAPI:
         title="Sequence Planner station",
         description="Operator, engineer and auditor HMI of one assembly station, and its JSON API.",
         version="0.1.0",
+        max_body_size=BODY_BYTES,  # the model routes allow more (app.web.model_editing)
     )
     app.state.server = srv
     app.add_middleware(
@@ -33,15 +36,19 @@ def create_app(srv: Server, secret: str) -> FastAPI:
         same_site="strict",
         https_only=srv.secure_cookies,
     )
+    app.add_middleware(SecurityHeaders)  # outermost: on every answer, errors included
     app.mount("/static", StaticFiles(directory=str(STATIC)), name="static")
     for router in (auth_routes.router, events.router, operator.router):
         app.include_router(router)
     _optional_routers(app)
 
     @app.get("/healthz", include_in_schema=False)
-    def healthz() -> dict[str, object]:
+    def healthz(since: float | None = None) -> dict[str, object]:
+        """`loop`: how the station loop keeps its period (over rounds since station time
+        `since`, the `now` of an earlier answer; by default the last few thousand)."""
         view = srv.live.view
-        return {"ok": True, "version": view.version, "model": view.model.number}
+        loop = srv.live.loop_summary(since)
+        return {"ok": True, "version": view.version, "model": view.model.number, "loop": loop}
 
     app.add_exception_handler(LoginRequired, _login_required)
     app.add_exception_handler(PasswordChangeRequired, _password_change)

@@ -64,6 +64,10 @@ class Criteria:
         return out
 
 
+EARLIEST = datetime(1, 1, 2, tzinfo=UTC).timestamp()
+LATEST = datetime(9999, 12, 30, tzinfo=UTC).timestamp()
+
+
 def iso(time: float) -> str:
     """A time as UTC ISO 8601 with milliseconds: 2025-05-01T14:30:00.000Z."""
     moment = datetime.fromtimestamp(time, UTC)
@@ -83,9 +87,14 @@ def parse_time(name: str, text: str) -> float | None:
         if moment.tzinfo is None:
             moment = moment.replace(tzinfo=UTC)
         try:
-            return moment.timestamp()
+            seconds = moment.timestamp()
         except (OverflowError, OSError, ValueError):
             break
+        if not EARLIEST <= seconds <= LATEST:  # shown back as a UTC date, which must exist
+            raise HTTPException(
+                422, f"{name}: use a time between the years 1 and 9999, for example {TIME_EXAMPLE}"
+            )
+        return seconds
     shown = text if len(text) <= 40 else text[:40] + "…"
     raise HTTPException(
         422, f"{name}: '{shown}' is not a date and time; use for example {TIME_EXAMPLE}"
@@ -365,12 +374,8 @@ def audit_csv(
     """The filtered log as CSV, oldest first; the export is audited before it starts."""
     srv = server(request)
     now = srv.live.wall()
-    audit.append_committed(
-        srv.store.sessions,
-        srv.live.name,
-        [AuditEntry("audit", "csv export", caller.name, "", {"filter": chosen.described()})],
-        now,
-    )
+    export = AuditEntry("audit", "csv export", caller.name, "", {"filter": chosen.described()})
+    audit.write(srv.store, srv.live.name, [export], now)
 
     def lines() -> Iterator[str]:
         with srv.store.sessions() as session:

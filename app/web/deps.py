@@ -1,23 +1,34 @@
 """FastAPI dependencies: the server, the current user and their permissions, CSRF checks.
 
 Pages and API routes share them: a browser session (signed cookie) or, for line systems, a
-bearer token.  Unsafe methods from a browser session must carry the session's CSRF token,
-as a form field `csrf_token` or an `X-CSRF-Token` header; bearer requests need none (no
-cookie a third-party page could ride on).
+bearer token, each looked up in the store on every request (app.user_sessions: revoked at
+once on logout, password change or disable), for a user whose row is sealed (app.store.seals:
+a row changed outside the station is refused).  Unsafe methods from a browser session must
+carry the session's CSRF token, as a form field `csrf_token` or an `X-CSRF-Token` header;
+bearer requests need none (no cookie a third-party page could ride on).
 """
 
 from __future__ import annotations
 
+import ipaddress
+import logging
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from typing import Any
 
 from fastapi import HTTPException, Request
+from starlette.concurrency import run_in_threadpool
 
+from app import user_sessions
 from app.auth import Permission, allowed, new_csrf_token, same_token
 from app.station_view import StationView
+from app.store import audit, seals
+from app.store.audit import AuditEntry
 from app.store.tables import User
-from app.web.server import Server
+from app.user_sessions import SessionKind
+from app.web.server import Network, Server
+
+log = logging.getLogger(__name__)
 
 SAFE_METHODS = ("GET", "HEAD", "OPTIONS")
 
@@ -57,26 +68,84 @@ def is_api(request: Request) -> bool:
     return request.url.path.startswith("/api")
 
 
+def client_address(request: Request) -> str:
+    """The client's address: the peer's, unless the peer is a trusted proxy (none by
+    default), then the nearest address in X-Forwarded-For that is not one."""
+    srv = server(request)
+    peer = request.client.host if request.client else "unknown"
+    if not srv.trusted_proxies or not _within(peer, srv.trusted_proxies):
+        return peer
+    hops = [h.strip() for h in request.headers.get("x-forwarded-for", "").split(",")]
+    for hop in reversed([h for h in hops if h]):
+        if not _within(hop, srv.trusted_proxies):
+            try:
+                return str(ipaddress.ip_address(hop))
+            except ValueError:
+                return peer  # not an address: the proxy's word is worth nothing here
+    return peer
+
+
+def _within(address: str, networks: tuple[Network, ...]) -> bool:
+    try:
+        ip = ipaddress.ip_address(address)
+    except ValueError:
+        return False
+    return any(ip in network for network in networks)
+
+
+def trusted_user(srv: Server, user: User) -> bool:
+    """An enabled user whose row the station wrote (a tampered one is said once, audited)."""
+    if user.disabled:
+        return False
+    keys = srv.store.keys
+    if keys is None or seals.user_intact(keys, user):
+        return True
+    if user.name not in srv.tampered:
+        srv.tampered.add(user.name)
+        log.warning("user '%s': the row does not match its seal; refused", user.name)
+        entry = AuditEntry("user", "row changed outside the station", "", "", {"name": user.name})
+        audit.write(srv.store, srv.live.name, [entry], srv.live.wall())
+    return False
+
+
+def browser_session(request: Request) -> user_sessions.Found | None:
+    """The signed-in browser session and its user (first-login password change or not)."""
+    srv = server(request)
+    secret, uid = request.session.get("sid"), request.session.get("uid")
+    if not isinstance(secret, str) or not isinstance(uid, int):
+        return None
+    with srv.store.sessions() as session:
+        found = user_sessions.find(session, secret, uid, srv.live.wall())
+        if found is not None:
+            session.expunge_all()
+    if found is None or found.row.kind != SessionKind.BROWSER or not trusted_user(srv, found.user):
+        request.session.clear()
+        return None
+    return found
+
+
 def current_caller(request: Request) -> Caller | None:
     srv = server(request)
     header = request.headers.get("authorization", "")
     if header.lower().startswith("bearer "):
-        with srv.store.sessions() as session:
-            user = srv.tokens.user(session, header[7:].strip())
-            if user is None:
-                raise HTTPException(401, "the bearer token is invalid or expired; get a new one")
-            return Caller(user.id, user.name, user.role, bearer=True)
-    uid = request.session.get("uid")
-    if uid is None:
+        carried = srv.tokens.read(header[7:].strip())
+        found = None
+        if carried is not None:
+            with srv.store.sessions() as session:
+                found = user_sessions.find(session, carried[1], carried[0], srv.live.wall())
+                if found is not None:
+                    session.expunge_all()
+        if found is None or found.row.kind != SessionKind.API or not trusted_user(srv, found.user):
+            raise HTTPException(
+                401, "the bearer token is invalid, expired or revoked; get a new one"
+            )
+        return Caller(found.user.id, found.user.name, found.user.role, bearer=True)
+    found = browser_session(request)
+    if found is None:
         return None
-    with srv.store.sessions() as session:
-        user = session.get(User, uid)
-        if user is None or user.disabled:
-            request.session.clear()
-            return None
-        if user.must_change_password:
-            raise PasswordChangeRequired()
-        return Caller(user.id, user.name, user.role)
+    if found.user.must_change_password:
+        raise PasswordChangeRequired()
+    return Caller(found.user.id, found.user.name, found.user.role)
 
 
 async def check_csrf(request: Request, caller: Caller) -> None:
@@ -96,7 +165,9 @@ def require(*permissions: Permission) -> Callable[[Request], Awaitable[Caller]]:
     """A dependency: the caller, who must be signed in and hold one of `permissions`."""
 
     async def dependency(request: Request) -> Caller:
-        caller = current_caller(request)
+        # its session and user are read from the store: not on the event loop's thread,
+        # which serves every page's event stream meanwhile
+        caller = await run_in_threadpool(current_caller, request)
         if caller is None:
             if is_api(request):
                 raise HTTPException(401, "sign in first: POST /api/token, then send a bearer token")

@@ -385,7 +385,9 @@ def model_page(
 
 @router.get("/model")
 def model_editor(
-    request: Request, caller: ModelEditor, version: Annotated[int | None, Query(ge=1)] = None
+    request: Request,
+    caller: ModelEditor,
+    version: Annotated[int | None, Query(ge=1, le=model_editing.MAX_VERSION)] = None,
 ) -> Response:
     srv = server(request)
     if version is None:
@@ -398,7 +400,11 @@ def model_editor(
 Text = Annotated[str, Form(max_length=model_editing.MAX_MODEL_CHARS)]
 
 
-@router.post("/model/validate")
+@router.post(
+    "/model/validate",
+    max_body_size=model_editing.MODEL_BODY_BYTES,
+    form_limits=model_editing.MODEL_FORM_LIMITS,  # type: ignore[arg-type]
+)
 def validate_model(request: Request, caller: ModelEditor, text: Text = "") -> Response:
     found = model_editing.problems(text)
     return render(
@@ -406,7 +412,11 @@ def validate_model(request: Request, caller: ModelEditor, text: Text = "") -> Re
     )
 
 
-@router.post("/model/save")
+@router.post(
+    "/model/save",
+    max_body_size=model_editing.MODEL_BODY_BYTES,
+    form_limits=model_editing.MODEL_FORM_LIMITS,  # type: ignore[arg-type]
+)
 def save_model(
     request: Request,
     caller: ModelEditor,
@@ -452,7 +462,9 @@ def save_model(
 
 @router.get("/model/diff")
 def model_diff(
-    request: Request, caller: ModelEditor, version: Annotated[int, Query(ge=1)]
+    request: Request,
+    caller: ModelEditor,
+    version: Annotated[int, Query(ge=1, le=model_editing.MAX_VERSION)],
 ) -> Response:
     srv = server(request)
     row = model_editing.stored(srv, version)
@@ -468,7 +480,9 @@ def model_diff(
 
 @router.post("/model/activate")
 async def activate_model(
-    request: Request, caller: Activator, version: Annotated[int, Form(ge=1)]
+    request: Request,
+    caller: Activator,
+    version: Annotated[int, Form(ge=1, le=model_editing.MAX_VERSION)],
 ) -> Response:
     srv = server(request)
     await model_editing.activate(srv, version, caller.name)

@@ -9,9 +9,11 @@ switch, which it refuses unless it is idle or in restart mode.
 from __future__ import annotations
 
 import difflib
+import gc
 from dataclasses import dataclass
 
 from fastapi import HTTPException
+from sqlalchemy.orm import Session
 from starlette.concurrency import run_in_threadpool
 
 from app.station_view import build_model
@@ -24,6 +26,13 @@ from planner.loading import ModelError
 from planner.station import load_station
 
 MAX_MODEL_CHARS = 2_000_000
+# what a request carrying a model may be: the text URL- or JSON-encoded (every other request
+# is held to BODY_BYTES, app.web.app), and the form field once decoded (UTF-8)
+MODEL_BODY_BYTES = 8 * 1024 * 1024
+MODEL_FORM_LIMITS = {"max_part_size": 4 * MAX_MODEL_CHARS}
+# the largest version number a request may name: as the API's; beyond 64 bits SQLite
+# raises OverflowError, which was a 500 (a bound at the edge makes it a 422)
+MAX_VERSION = 1_000_000_000
 
 
 @dataclass(frozen=True)
@@ -54,15 +63,17 @@ def save(
     if found:
         return None, found
     name = srv.live.name
-    with srv.store.sessions.begin() as session:
+
+    def add(session: Session) -> ModelVersion:
         row = versions.add(session, name, text, author, note)
-        audit.append(
-            session,
-            name,
-            [AuditEntry("model", "saved", author, "", {"version": row.number, "note": note})],
-            srv.live.wall(),
-        )
-        session.expunge(row)
+        session.flush()
+        return row
+
+    def saved(row: ModelVersion) -> list[AuditEntry]:
+        return [AuditEntry("model", "saved", author, "", {"version": row.number, "note": note})]
+
+    row = audit.write(srv.store, name, saved, srv.live.wall(), also=add)
+    assert row is not None
     return row, []
 
 
@@ -97,7 +108,12 @@ async def activate(srv: Server, number: int, user: str) -> None:
     if why:
         raise HTTPException(409, f"{why}; activate when it is idle or in restart mode")
     model = await run_in_threadpool(build_model, row, srv.cache)
-    await answer(srv.live.activate(model, user))
+    prepared = await run_in_threadpool(srv.live.prepare, model)
+    await answer(srv.live.activate(prepared, user))
+    if gc.get_freeze_count():  # `sp serve` froze the old model's objects: let them go
+        gc.unfreeze()
+        gc.collect()  # one long collection, while the station is idle or in restart mode
+        gc.freeze()
     if srv.experiments:
         from app.serve import experiments
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from typing import Annotated, Any
+from urllib.parse import urlsplit
 
 from fastapi import APIRouter, Depends, Form, Request
 from fastapi.responses import RedirectResponse, Response
@@ -36,7 +37,26 @@ def back(request: Request, fragment: str) -> Response:
             "tasks",
             cards=task_cards(server(request).live.view),
         )
-    return RedirectResponse(request.headers.get("referer") or "/", status_code=303)
+    return RedirectResponse(same_origin_path(request), status_code=303)
+
+
+def same_origin_path(request: Request) -> str:
+    """Where the form was (the Referer's path and query) if that is this station, else "/":
+    following the header as it came made the station an open redirect to any other site.
+    (The last test is auth_routes' `_safe_next`, copied: a "//host" path leaves too.)"""
+    referer, own = urlsplit(request.headers.get("referer", "")), urlsplit(str(request.url))
+    try:
+        theirs = (referer.scheme, referer.hostname, referer.port or _PORTS.get(referer.scheme))
+        ours = (own.scheme, own.hostname, own.port or _PORTS.get(own.scheme))
+    except ValueError:  # a port that is not a number
+        return "/"
+    if theirs != ours:
+        return "/"
+    target = referer.path + (f"?{referer.query}" if referer.query else "")
+    return target if target.startswith("/") and not target.startswith(("//", "/\\")) else "/"
+
+
+_PORTS = {"http": 80, "https": 443}
 
 
 @router.get("/")

@@ -2,19 +2,38 @@
 
 from __future__ import annotations
 
+import ipaddress
+import threading
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from fastapi.templating import Jinja2Templates
 
-from app.auth import ApiTokens, LoginThrottle
 from app.live_station import LiveStation
 from app.scenario import Scenario
+from app.store.checkpoints import Checkpointer
 from app.store.db import Store
+from app.throttle import SignInThrottle
+from app.user_sessions import ApiTokens
 
 ROOT = Path(__file__).resolve().parents[2]
 TEMPLATES = ROOT / "templates"
 STATIC = ROOT / "static"
+PASSWORD_CHECKS = 4  # argon2 checks at once: each takes ~0.2 s of a core and 64 MiB
+
+Network = ipaddress.IPv4Network | ipaddress.IPv6Network
+
+
+def parse_networks(texts: Iterable[str]) -> tuple[Network, ...]:
+    """Addresses or networks (`10.0.0.5`, `10.0.0.0/24`); ValueError names a bad one."""
+    networks = []
+    for text in texts:
+        try:
+            networks.append(ipaddress.ip_network(text.strip(), strict=False))
+        except ValueError:
+            raise ValueError(f"'{text}' is not an IP address or network") from None
+    return tuple(networks)
 
 
 @dataclass
@@ -23,10 +42,27 @@ class Server:
     live: LiveStation
     tokens: ApiTokens
     cache: Path | None
-    throttle: LoginThrottle = field(default_factory=LoginThrottle)
+    throttle: SignInThrottle = field(default_factory=SignInThrottle)
     # the simulation panel's experiments: id -> (title, scenario)
     experiments: dict[str, tuple[str, Scenario]] = field(default_factory=dict)
     templates: Jinja2Templates = field(
         default_factory=lambda: Jinja2Templates(directory=str(TEMPLATES))
     )
     secure_cookies: bool = False
+    trusted_proxies: tuple[Network, ...] = ()
+    checkpoints: Checkpointer | None = None
+    password_checks: threading.BoundedSemaphore = field(
+        default_factory=lambda: threading.BoundedSemaphore(PASSWORD_CHECKS)
+    )
+    tampered: set[str] = field(default_factory=set)  # users whose tampered row was said
+
+    def start(self) -> None:
+        """The station loop and the audit checkpoints (the web app is served by the caller)."""
+        self.live.start()
+        if self.checkpoints is not None:
+            self.checkpoints.start()
+
+    def stop(self) -> None:
+        self.live.stop()
+        if self.checkpoints is not None:
+            self.checkpoints.stop()

@@ -9,10 +9,14 @@ from typing import Annotated
 from fastapi import APIRouter, Depends, Form, HTTPException, Request
 from fastapi.responses import Response
 from sqlalchemy import select
+from sqlalchemy.exc import IntegrityError
+from sqlalchemy.orm import Session
 
+from app import user_sessions
 from app.auth import ROLES, Permission, add_user, password_problem, user_named
 from app.store import audit
 from app.store.audit import AuditEntry
+from app.store.seals import TamperedUser
 from app.store.tables import User
 from app.web.deps import Caller, page_context, require, server
 
@@ -61,12 +65,20 @@ def add(
         problem = password_problem(name, password)
     if problem:
         return _page(request, caller, 422, error=problem)
-    with srv.store.sessions.begin() as session:
+
+    def added(session: Session) -> bool:
         if user_named(session, name) is not None:
-            return _page(request, caller, 409, error=f"there is already a user '{name}'")
+            return False
         add_user(session, name, role, password, must_change=True)
-        entry = AuditEntry("user", "added", caller.name, "", {"name": name, "role": role})
-        audit.append(session, srv.live.name, [entry], srv.live.wall())
+        return True
+
+    entry = AuditEntry("user", "added", caller.name, "", {"name": name, "role": role})
+    try:
+        done = audit.write(srv.store, srv.live.name, [entry], srv.live.wall(), also=added)
+    except IntegrityError:  # another station of the same database took the name just now
+        done = False
+    if not done:
+        return _page(request, caller, 409, error=f"there is already a user '{name}'")
     return _page(
         request, caller, message=f"Added {name} ({role}); they choose a password at first sign-in"
     )
@@ -82,12 +94,22 @@ def disable(
     srv = server(request)
     if name == caller.name:
         raise HTTPException(409, "you cannot disable yourself")
-    with srv.store.sessions.begin() as session:
+    subject = "disabled" if disabled else "enabled"
+    detail: dict[str, object] = {"name": name}
+
+    def change(session: Session) -> None:
         user = user_named(session, name)
         if user is None:
             raise HTTPException(404, f"there is no user '{name}'")
         user.disabled = disabled
-        subject = "disabled" if disabled else "enabled"
-        entry = AuditEntry("user", subject, caller.name, "", {"name": name})
-        audit.append(session, srv.live.name, [entry], srv.live.wall())
+        if disabled:  # whatever they had signed in with ends now
+            detail["sessions_ended"] = user_sessions.revoke_all(
+                session, user.id, "disabled", srv.live.wall()
+            )
+
+    entry = AuditEntry("user", subject, caller.name, "", detail)
+    try:
+        audit.write(srv.store, srv.live.name, [entry], srv.live.wall(), also=change)
+    except TamperedUser as exc:
+        raise HTTPException(409, str(exc)) from None
     return _page(request, caller, message=f"{name} is {subject}")

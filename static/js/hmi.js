@@ -4,7 +4,10 @@
 // - an SSE "alarm" event whose data is a count (or JSON {count, priority}) updates #alarm-count;
 // - data-confirm="question?" on a form, submit button, link or htmx element asks confirm() first
 //   (htmx's own hx-confirm works as usual);
-// - forms with data-once send once (no double "Done").
+// - forms with data-once send once (no double "Done");
+// - a live part with data-seen sends the digest of what it shows as `seen` (204 if unchanged);
+// - a form with data-reset-on-success is reset after its own request succeeded.
+// No inline handlers (hx-on, js: values): the Content-Security-Policy forbids eval.
 (() => {
   "use strict";
 
@@ -13,6 +16,17 @@
   document.addEventListener("htmx:configRequest", (event) => {
     const token = csrfToken();
     if (token) event.detail.headers["X-CSRF-Token"] = token;
+    const el = event.detail.elt;
+    if (el?.hasAttribute?.("data-seen")) {
+      const shown = el.querySelector(":scope > [data-digest]");
+      event.detail.parameters.seen = shown?.dataset.digest || "";
+    }
+  });
+
+  // not after requests of elements inside the form (its variable select reloads the form)
+  document.addEventListener("htmx:afterRequest", (event) => {
+    const el = event.detail.elt;
+    if (event.detail.successful && el?.matches?.("form[data-reset-on-success]")) el.reset();
   });
 
   // ---- connection indicator ----

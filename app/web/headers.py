@@ -1,0 +1,91 @@
+"""Security headers on every answer: pages, fragments, the API, static files and errors.
+
+The HMI loads only its own files: no inline script, style or event handler (templates use
+data attributes that static/js/hmi.js handles, and htmx is told not to inject its indicator
+style), so the policy forbids everything else, and a script slipped into a page by way of a
+model text, a user name or a note does not run.  Framing is refused (click-jacking on a
+control page), MIME sniffing too, and referrers leave only within the station.
+
+The API's documentation pages (/docs, /redoc) are FastAPI's: they load Swagger UI and ReDoc
+from their CDN and start them with an inline script, so they get a policy that allows that and
+nothing more; they show no station data.
+"""
+
+from __future__ import annotations
+
+from starlette.types import ASGIApp, Message, Receive, Scope, Send
+
+_COMMON = (
+    "object-src 'none'",
+    "base-uri 'none'",
+    "frame-ancestors 'none'",
+    "form-action 'self'",
+)
+POLICY = "; ".join(
+    ("default-src 'self'", "script-src 'self'", "style-src 'self'", "img-src 'self'", *_COMMON)
+)
+_CDN = "https://cdn.jsdelivr.net"
+DOCS_POLICY = "; ".join(
+    (
+        "default-src 'self'",
+        f"script-src 'self' 'unsafe-inline' {_CDN}",
+        f"style-src 'self' 'unsafe-inline' {_CDN} https://fonts.googleapis.com",
+        "font-src https://fonts.gstatic.com",
+        "img-src 'self' data: https://fastapi.tiangolo.com https://cdn.redoc.ly",
+        "worker-src 'self' blob:",
+        *_COMMON,
+    )
+)
+DOCS_PAGES = frozenset(("/docs", "/docs/oauth2-redirect", "/redoc"))  # FastAPI's defaults
+
+_FIXED = (
+    (b"x-frame-options", b"DENY"),
+    (b"x-content-type-options", b"nosniff"),
+    (b"referrer-policy", b"same-origin"),
+)
+_NAMES = frozenset((b"content-security-policy", *(name for name, _ in _FIXED)))
+
+
+def headers_for(path: str) -> list[tuple[bytes, bytes]]:
+    policy = DOCS_POLICY if path in DOCS_PAGES else POLICY
+    return [(b"content-security-policy", policy.encode()), *_FIXED]
+
+
+class SecurityHeaders:
+    """Pure ASGI middleware: adds the headers to each response start, replacing any the app
+    set; an exception before the response started still answers 500 with them."""
+
+    def __init__(self, app: ASGIApp) -> None:
+        self.app = app
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        added = headers_for(scope["path"])
+        started = False
+
+        async def send_with_headers(message: Message) -> None:
+            nonlocal started
+            if message["type"] == "http.response.start":
+                started = True
+                kept = [h for h in message.get("headers", []) if h[0].lower() not in _NAMES]
+                message = {**message, "headers": [*kept, *added]}
+            await send(message)
+
+        try:
+            await self.app(scope, receive, send_with_headers)
+        except Exception:
+            # Starlette's error middleware sits outside every added one: its 500 would go out
+            # bare.  Answer here instead; it sees the response started and only re-raises.
+            if not started:
+                body = b"Internal Server Error"
+                plain = [
+                    (b"content-type", b"text/plain; charset=utf-8"),
+                    (b"content-length", str(len(body)).encode()),
+                ]
+                await send_with_headers(
+                    {"type": "http.response.start", "status": 500, "headers": plain}
+                )
+                await send({"type": "http.response.body", "body": body})
+            raise
