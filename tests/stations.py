@@ -102,11 +102,17 @@ class RunningStation:
                 raise AssertionError(f"not reached within {seconds} s")
             time.sleep(0.05)
 
-    def serve(self, head_timeout: float = http_server.HEAD_TIMEOUT) -> str:
+    def serve(
+        self,
+        head_timeout: float = http_server.HEAD_TIMEOUT,
+        body_timeout: float = http_server.BODY_TIMEOUT,
+    ) -> str:
         """Serve the app as `sp serve` does (app.web.http_server) on an ephemeral port of
         127.0.0.1."""
         port = free_port()
-        config = http_server.config(self.built.app, "127.0.0.1", port, head_timeout=head_timeout)
+        config = http_server.config(
+            self.built.app, "127.0.0.1", port, head_timeout=head_timeout, body_timeout=body_timeout
+        )
         self.uvicorn_server = uvicorn.Server(config)
         self.thread = threading.Thread(target=self.uvicorn_server.run, daemon=True)
         self.thread.start()

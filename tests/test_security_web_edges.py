@@ -558,6 +558,25 @@ def connect(url: str) -> socket.socket:
     return socket.create_connection((host, int(port)), timeout=5)
 
 
+def test_a_body_that_never_arrives_does_not_hold_the_connection(
+    station: RunningStation,
+) -> None:
+    url = station.serve(head_timeout=10.0, body_timeout=LIMIT)
+    head = (
+        b"POST /login HTTP/1.1\r\nHost: x\r\nContent-Type: application/x-www-form-urlencoded"
+        b"\r\nContent-Length: 2000\r\n\r\n"
+    )
+    with connect(url) as stalled:
+        stalled.sendall(head + b"name=a")
+        assert closed_after(stalled) < LIMIT + 1.5
+    with connect(url) as trickle:  # a byte at a time does not extend it either
+        trickle.sendall(head)
+        body = iter(b"p" * 2000)
+        assert closed_after(trickle, lambda: trickle.sendall(bytes([next(body)]))) < LIMIT + 1.5
+    with httpx.Client(base_url=url) as client:  # a whole request is answered as ever
+        assert client.post("/login", data={"name": "a", "password": "b"}).status_code == 403
+
+
 def test_connections_that_do_not_finish_a_request_head_are_closed(
     station: RunningStation,
 ) -> None:

@@ -5,8 +5,10 @@ is the keep-alive one, armed after a response and cancelled by the first byte of
 request.  A few hundred silent sockets, or ones that stop half-way through a request line,
 would hold the station's file descriptors.  Here a client has `HEAD_TIMEOUT` seconds to send a
 complete request head, from connecting and, on a kept-alive connection, from the end of the
-previous response; bytes that trickle in do not extend it.  Once a head is in, nothing is
-timed: the server-sent events at /events stream as long as the page stays open.
+previous response; bytes that trickle in do not extend it.  A request body announced by its
+head must then arrive within `BODY_TIMEOUT` (a body that never comes held the connection as
+well).  Once a request is in, nothing is timed: the server-sent events at /events stream as
+long as the page stays open.
 
 Proxy headers are not trusted: by default uvicorn takes the client's address from
 X-Forwarded-For on connections from 127.0.0.1, so anyone on the station's own host could pick
@@ -25,6 +27,7 @@ from starlette.types import ASGIApp
 from uvicorn.protocols.http.h11_impl import H11Protocol
 
 HEAD_TIMEOUT = 10.0  # s for a complete request head
+BODY_TIMEOUT = 60.0  # s for the body after its head: 8 MiB (a model) at ~140 KB/s
 KEEP_ALIVE = 5  # s an idle kept-alive connection stays open (uvicorn's timeout_keep_alive)
 STARTUP_FAILURE = 3  # uvicorn.run's exit status when the server cannot start
 
@@ -38,7 +41,9 @@ class HeadDeadlineProtocol(H11Protocol):
     """
 
     timeout: ClassVar[float] = HEAD_TIMEOUT
+    body_timeout: ClassVar[float] = BODY_TIMEOUT
     _deadline: asyncio.TimerHandle | None = None
+    _timing: object = None  # the h11 state the deadline runs for (IDLE: a head, SEND_BODY)
 
     def connection_made(self, transport: asyncio.Transport) -> None:  # type: ignore[override]
         super().connection_made(transport)
@@ -53,11 +58,14 @@ class HeadDeadlineProtocol(H11Protocol):
         super().connection_lost(exc)
 
     def _watch(self) -> None:
-        waiting = self.conn.their_state is h11.IDLE and not self.transport.is_closing()
-        if not waiting:
+        state = self.conn.their_state
+        limits = {h11.IDLE: self.timeout, h11.SEND_BODY: self.body_timeout}
+        if state not in limits or self.transport.is_closing():
             self._cancel()
-        elif self._deadline is None:  # not restarted by part of a head
-            self._deadline = self.loop.call_later(self.timeout, self._expired)
+        elif self._deadline is None or self._timing is not state:  # not restarted by a part
+            self._cancel()
+            self._timing = state
+            self._deadline = self.loop.call_later(limits[state], self._expired)
 
     def _cancel(self) -> None:
         if self._deadline is not None:
@@ -76,13 +84,16 @@ def config(
     port: int,
     *,
     head_timeout: float = HEAD_TIMEOUT,
+    body_timeout: float = BODY_TIMEOUT,
     keep_alive: int = KEEP_ALIVE,
     log_level: str = "warning",
 ) -> uvicorn.Config:
-    """The server's configuration; tests shorten `head_timeout` to see it work."""
+    """The server's configuration; tests shorten the time-outs to see them work."""
+    body_timeout_ = body_timeout
 
     class Protocol(HeadDeadlineProtocol):
         timeout = head_timeout
+        body_timeout = body_timeout_
 
     return uvicorn.Config(
         app,
