@@ -8,8 +8,6 @@ from __future__ import annotations
 
 import json
 import sqlite3
-import subprocess
-import sys
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
@@ -21,7 +19,8 @@ from app.store.checkpoints import Checkpointer
 from app.store.db import open_store, sqlite_url
 from app.store.keys import read_keys
 from app.store.verification import verify
-from tests.test_audit_store import ROOT, sealed_store, tamper
+from tests.test_audit_store import sealed_store, tamper
+from tests.test_audit_store import verify as sp_verify
 
 T0 = 1_700_000_000.0
 FORGED = "INSERT INTO audit VALUES (31, ?, 'demo', 'admin', 'user', 'enabled', '', '{}', ?, ?, "
@@ -52,15 +51,6 @@ def db(tmp_path: Path) -> Path:
         audit.write(store, "demo", [AuditEntry("operator", f"late {k}", "anna")], T0 + 50 + k)
     store.close()
     return path
-
-
-def sp_verify(db: Path) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "app.cli", "audit", "verify", "--db", sqlite_url(db)],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-    )
 
 
 def broken(db: Path, *expected: str) -> str:

@@ -105,7 +105,8 @@ class Checkpointer:
         period: float = PERIOD,
         clock: Callable[[], float] = time.time,
     ) -> None:
-        assert store.keys is not None and store.keys.checkpoints is not None
+        if store.keys is None or store.keys.checkpoints is None:
+            raise ValueError("checkpoints need the store's keys from a key file (seal_store)")
         self.store, self.keys, self.path = store, store.keys, store.keys.checkpoints
         self.station, self.period, self.clock = station, period, clock
         self.written = (-1, "")
