@@ -284,13 +284,27 @@ class LiveStation:
                 answers.append((request, self._handle(request, now, entries)))
             except StationError as exc:
                 request.future.set_exception(exc)
+            except Exception as exc:  # a fault of ours: said, and the person told at once
+                log.exception("a %s request failed", request.kind)
+                request.future.set_exception(StationError(f"the station could not do that: {exc}"))
         try:
-            result = self.cycle.step(now, [request.payload for request in acting])
+            self._step_and_commit(now, entries, answers, acting)
         except Exception as exc:  # nobody waits 30 s for an answer that will not come
             failed = StationError(f"the station could not do that: {exc}")
             for request, _ in [*answers, *((r, None) for r in acting)]:
-                request.future.set_exception(failed)
+                if not request.future.done():
+                    request.future.set_exception(failed)
             raise
+
+    def _step_and_commit(
+        self,
+        now: float,
+        entries: list[AuditEntry],
+        answers: list[tuple[_Request, Any]],
+        acting: list[_Request],
+    ) -> None:
+        """The round's tick and commit; then its requests are answered and pages told."""
+        result = self.cycle.step(now, [request.payload for request in acting])
         answers += [
             (request, Acted(reply, result.events))
             for request, reply in zip(acting, result.replies, strict=True)

@@ -9,10 +9,13 @@ from __future__ import annotations
 import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
+from typing import Any
 
 import httpx
+import pytest
 from sqlalchemy import event
 
+from app.live_station import StationError
 from tests.stations import RunningStation, form_token
 from tests.test_security_throttle import audited
 
@@ -86,3 +89,24 @@ def test_a_failed_sign_in_holds_one_database_connection_at_most(
         event.remove(engine, "checkout", checkout)
         event.remove(engine, "checkin", checkin)
     assert most and max(most.values()) == 1, most
+
+
+def test_a_request_that_fails_inside_the_loop_is_answered_at_once(
+    station: RunningStation, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A fault of ours in one request (not a refusal) answers that person with an error
+    in the same round, instead of a 503 after 30 s, and the loop goes on."""
+    live = station.live
+    real = live._handle
+
+    def failing(request: Any, now: float, entries: list[Any]) -> Any:
+        if request.kind == "acknowledge":
+            raise ValueError("a bug")
+        return real(request, now, entries)
+
+    monkeypatch.setattr(live, "_handle", failing)
+    began = time.monotonic()
+    with pytest.raises(StationError, match="could not do that: a bug"):
+        live.acknowledge("resource:r1", "operator", "").result(10)
+    assert time.monotonic() - began < 5.0
+    assert live.unshelve("resource:r1", "operator").exception(10) is not None  # answered too
