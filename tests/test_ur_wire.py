@@ -228,3 +228,15 @@ def test_a_sensible_reading_is_trusted() -> None:
 def test_nonsense_is_not_trusted(changes: dict[str, object]) -> None:
     with pytest.raises(Nonsense):
         reading_from(sample(**changes), 0.0)
+
+
+def test_the_driver_is_ready_only_once_a_reading_shows_the_program_running() -> None:
+    """A reading in flight when control comes up may still show the program stopped."""
+    from hw.ur.driver import URDriver
+
+    driver = URDriver("127.0.0.9", name="r1", heartbeat_timeout=5.0)
+    driver._receive(("ready",))
+    driver._receive(("reading", sample(stamp=1.0, safety_bits=1, runtime_state=1)))
+    assert not driver.available and "control program" in driver.status().error
+    driver._receive(("reading", sample(stamp=1.1, safety_bits=1, runtime_state=2)))
+    assert driver.available and driver.status().error == ""

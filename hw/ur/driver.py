@@ -58,6 +58,7 @@ class URDriver:
         self._advanced_at = 0.0
         self._latency_ms: float | None = None
         self._ready = False
+        self._program_pending = False
         self._trusted = False
         self._error = "not started"
         self._command_error = ""
@@ -175,7 +176,7 @@ class URDriver:
         child.close()
         with self._lock:
             self._child, self._conn = process, parent
-            self._ready = False
+            self._ready = self._program_pending = False
             self._last_move = None
             self._commands.clear()
             if self._tool is not None:
@@ -214,9 +215,10 @@ class URDriver:
         if kind == "reading":
             self._reading(message[1])
         elif kind == "ready":
-            self._ready = True
-            self._advanced_at = time.monotonic()
-            self._error = ""
+            # Control is up, but a reading already in flight may still show the program
+            # stopped: the robot is ready with the first reading that shows it running.
+            self._program_pending = True
+            self._error = "starting: waiting for the control program to run"
         elif kind == "phase":
             self._error = f"starting: {message[1]}"
         elif kind == "error":
@@ -238,6 +240,10 @@ class URDriver:
             self._advanced_at = now
         self._latest = reading
         self._trusted = True
+        if self._program_pending and (reading.running or reading.protective_stop):
+            self._program_pending = False
+            self._ready = True
+            self._advanced_at = now
         if self._ready:
             self._error = ""
         sampled = raw.get("sampled")
@@ -264,7 +270,7 @@ class URDriver:
         with self._lock:
             child, conn = self._child, self._conn
             self._child, self._conn = None, None
-            self._ready = False
+            self._ready = self._program_pending = False
         if child is not None:
             child.terminate()
             child.join(STOP_WAIT)
