@@ -6,7 +6,7 @@ page reads one consistent round however long it takes to render.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from app import supervisor_cache
@@ -16,6 +16,7 @@ from planner.operation_planner import OperationPlanner
 from planner.runner import Event, Runner, RunnerState
 from planner.station import Station, load_station
 from planner.transition_planner import TransitionPlanner
+from planner.wording import Wording
 
 
 @dataclass(frozen=True)
@@ -29,6 +30,11 @@ class ActiveModel:
     transition_planner: TransitionPlanner
     operation_planner: OperationPlanner
     cache: Path | None = None  # where its supervisor is saved (a planning worker loads it)
+    # what pages call each of its names, computed once per version (planner.wording)
+    words: Wording = field(init=False, compare=False, repr=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "words", Wording(self.station))
 
 
 @dataclass(frozen=True)

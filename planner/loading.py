@@ -9,13 +9,15 @@ engineer sees every mistake at once.  Pure: text in, `Model` out.
 from __future__ import annotations
 
 import difflib
-from collections.abc import Callable, Iterable, Iterator, Mapping
+from collections.abc import Callable, Collection, Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from typing import TypeVar
 
 import yaml
 
+from planner.display_keys import fill_checked, read_value_words, read_words
 from planner.expressions import (
+    TRUE,
     Assign,
     Expr,
     ExpressionError,
@@ -310,9 +312,9 @@ def _each(
 # ---- the flat model (section 8) -------------------------------------------------------------
 
 FLAT_KEYS = ("variables", "transitions", "specifications")
-_VARIABLE_KEYS = ("name", "domain", "initial", "kind", "description")
-_TRANSITION_KEYS = ("name", "kind", "guard", "actions", "description")
-_SPECIFICATION_KEYS = ("name", "invariant", "description")
+_VARIABLE_KEYS = ("name", "domain", "initial", "kind", "description", "display", "display_values")
+_TRANSITION_KEYS = ("name", "kind", "guard", "actions", "description", "display")
+_SPECIFICATION_KEYS = ("name", "invariant", "description", "display")
 
 
 def read_variable(reader: Reader, node: yaml.Node, prefix: str = "") -> Variable | None:
@@ -351,7 +353,37 @@ def read_variable(reader: Reader, node: yaml.Node, prefix: str = "") -> Variable
             )
         elif value is not None:
             initial = value
-    return Variable(prefix + name, domain, initial, kind, reader.at(node))
+    what = f"variable '{prefix}{name}'"
+    return Variable(
+        prefix + name,
+        domain,
+        initial,
+        kind,
+        reader.at(node),
+        read_description(reader, fields),
+        read_display(reader, fields, what),
+        read_value_words(reader, fields["display_values"][1], what, domain)
+        if "display_values" in fields
+        else (),
+    )
+
+
+def read_description(reader: Reader, fields: Mapping[str, tuple[yaml.Node, yaml.Node]]) -> str:
+    if "description" not in fields:
+        return ""
+    return reader.scalar(fields["description"][1], "description") or ""
+
+
+def read_display(
+    reader: Reader,
+    fields: Mapping[str, tuple[yaml.Node, yaml.Node]],
+    what: str,
+    parameters: Collection[str] = (),
+) -> str:
+    """The `display` of `what` as written (placeholders unfilled); "" if none or bad."""
+    if "display" not in fields:
+        return ""
+    return read_words(reader, fields["display"][1], f"the display of {what}", parameters) or ""
 
 
 def _domain_value(text: str, node: yaml.Node, is_bool: bool) -> Value:
@@ -405,8 +437,10 @@ def read_transition(
     kinds: Mapping[str, Variable],
     values: Mapping[str, str] | None = None,
     label: str = "",
+    words: Mapping[str, str] | None = None,
 ) -> Transition | None:
-    """A transition as written; `values` fill `{param}` placeholders (ability instances).
+    """A transition as written; `values` fill `{param}` placeholders (ability instances),
+    and `words` (the values' words for people) fill those of its `display`.
 
     `label` prefixes the name in messages (`r1.goto.` for an ability's transitions).
     """
@@ -414,11 +448,11 @@ def read_transition(
     if fields is None or "name" not in fields:
         return None
     name = reader.name(fields["name"][1], "transition name")
-    about = (
-        reader.scalar(fields["description"][1], "description") or ""
-        if "description" in fields
-        else ""
-    )
+    about = read_description(reader, fields)
+    display = read_display(reader, fields, f"transition '{label}{name}'", (values or {}).keys())
+    if display and words:
+        what = f"the display of transition '{label}{name}'"
+        display = fill_checked(reader, fields["display"][1], what, display, words)
     kind = TransitionKind.CONTROLLED
     if "kind" in fields:
         text = reader.scalar(fields["kind"][1], "transition kind")
@@ -443,8 +477,8 @@ def read_transition(
     if name is None or actions is None:
         return None
     if guard is None:
-        return Transition(name, kind, actions=actions, source=reader.at(node), description=about)
-    return Transition(name, kind, guard, actions, reader.at(node), about)
+        guard = TRUE
+    return Transition(name, kind, guard, actions, reader.at(node), about, display)
 
 
 def read_actions(
@@ -498,7 +532,14 @@ def read_specification(reader: Reader, node: yaml.Node, scope: Scope) -> Specifi
     )
     if name is None or invariant is None:
         return None
-    return Specification(name, invariant, reader.at(node))
+    what = f"specification '{name}'"
+    return Specification(
+        name,
+        invariant,
+        reader.at(node),
+        read_description(reader, fields),
+        read_display(reader, fields, what),
+    )
 
 
 def read_flat(reader: Reader, top: dict[str, tuple[yaml.Node, yaml.Node]]) -> Model:

@@ -51,6 +51,10 @@ class Variable:
     initial: Value
     kind: VariableKind = VariableKind.ESTIMATED
     source: SourceLocation | None = field(default=None, compare=False)
+    # words for people (planner.wording); no planner reads them
+    description: str = field(default="", compare=False)
+    display: str = field(default="", compare=False)
+    display_values: tuple[tuple[Value, str], ...] = field(default=(), compare=False)
 
     @property
     def is_bool(self) -> bool:
@@ -73,6 +77,7 @@ class Transition:
     actions: tuple[Assign, ...] = ()
     source: SourceLocation | None = field(default=None, compare=False)
     description: str = field(default="", compare=False)  # plain words, for instructions
+    display: str = field(default="", compare=False)  # its name for people (planner.wording)
 
     @property
     def written(self) -> frozenset[str]:
@@ -86,6 +91,8 @@ class Specification:
     name: str
     invariant: Expr
     source: SourceLocation | None = field(default=None, compare=False)
+    description: str = field(default="", compare=False)  # what it protects, in words
+    display: str = field(default="", compare=False)  # its name for people (planner.wording)
 
 
 @dataclass(frozen=True)

@@ -14,6 +14,7 @@ from enum import StrEnum
 
 import yaml
 
+from planner.display_keys import fill_checked, parameter_words, read_value_words
 from planner.expressions import (
     TRUE,
     Assign,
@@ -33,6 +34,7 @@ from planner.loading import (
     _each,
     name_nodes,
     read_actions,
+    read_display,
     read_flat,
     read_specification,
     read_top,
@@ -43,10 +45,11 @@ from planner.loading import (
 from planner.model import Model, Specification, Transition, TransitionKind, Variable
 from planner.watch import Watch, read_watch
 
-STATION_KEYS = ("station", "description", "resources", "operations", "intentions")
+STATION_KEYS = ("station", "description", "display", "resources", "operations", "intentions")
 _RESOURCE_KEYS = (
     "name",
     "description",
+    "display",
     "kind",
     "variables",
     "abilities",
@@ -56,6 +59,7 @@ _RESOURCE_KEYS = (
 _ABILITY_KEYS = (
     "name",
     "description",
+    "display",
     "parameter",
     "predicates",
     "transitions",
@@ -66,13 +70,15 @@ _INSTANCE_KEYS = ("guard", "actions")
 _OPERATION_KEYS = (
     "name",
     "description",
+    "display",
     "parameter",
     "precondition",
     "effects",
     "goal",
     "actions",
 )
-_INTENTION_KEYS = ("name", "description", "precondition", "goal", "always", "actions")
+_INTENTION_KEYS = ("name", "description", "display", "precondition", "goal", "always", "actions")
+_PARAMETER_KEYS = ("name", "values", "display_values")
 
 
 @dataclass(frozen=True)
@@ -87,6 +93,7 @@ class Ability:
     transitions: tuple[str, ...]
     restart: bool = False
     description: str = ""  # plain words, with the parameter's value filled in
+    display: str = ""  # its name for people, the value's words filled in (planner.wording)
 
     @property
     def qualified(self) -> str:
@@ -110,6 +117,7 @@ class Resource:
     transitions: tuple[str, ...]  # every transition belonging to the resource
     kind: ResourceKind = ResourceKind.DEVICE
     watch: Watch | None = None  # a person's smartwatch (planner.watch)
+    display: str = ""  # its name for people (planner.wording)
 
     @property
     def person(self) -> bool:
@@ -126,6 +134,7 @@ class Operation:
     goal: Expr
     actions: tuple[Assign, ...] = ()
     description: str = ""
+    display: str = ""  # its name for people, the value's words filled in (planner.wording)
 
     def planning_goal(self, values: Mapping[str, Value]) -> Expr:
         """The transition planner's goal: `goal` and the effects evaluated in `values`."""
@@ -142,6 +151,7 @@ class Intention:
     always: Expr | None = None
     actions: tuple[Assign, ...] = ()
     description: str = ""
+    display: str = ""  # its name for people (planner.wording)
 
 
 def effect_as_goal(action: Assign, values: Mapping[str, Value]) -> Expr:
@@ -168,6 +178,8 @@ class Station:
     intentions: tuple[Intention, ...] = ()
     predicates: dict[str, Expr] = field(default_factory=dict)
     restart_transitions: frozenset[str] = frozenset()
+    description: str = ""
+    display: str = ""  # the station's name for people (planner.wording)
 
     def operation(self, name: str) -> Operation:
         return next(o for o in self.operations if o.name == name)
@@ -194,6 +206,7 @@ def load_station(text: str, file: str = "<model>") -> Station:
 
 def read_station(reader: Reader, top: Fields) -> Station:
     name = reader.scalar(top["station"][1], "station name") if "station" in top else ""
+    display = read_display(reader, top, f"station '{name}'")
     # 1. variables: station-wide ones, then each resource's (named RESOURCE.NAME)
     variable_nodes = reader.sequence(top["variables"][1], "variables") if "variables" in top else []
     variables = list(_each(reader, variable_nodes, lambda n: read_variable(reader, n)))
@@ -279,6 +292,7 @@ def read_station(reader: Reader, top: Fields) -> Station:
                 tuple(ability_names),
                 tuple(own),
                 _resource_kind(reader, fields.get("kind")),
+                display=read_display(reader, fields, f"resource '{resource}'"),
             )
         )
 
@@ -337,6 +351,8 @@ def read_station(reader: Reader, top: Fields) -> Station:
         tuple(intentions),
         predicates,
         frozenset(restart),
+        _description(reader, top),
+        display,
     )
 
 
@@ -370,6 +386,15 @@ def _effect_predicate(action: Assign) -> Expr:
     return _equals(action.target, action.value)
 
 
+def _key_node(node: yaml.Node, key: str) -> yaml.Node | None:
+    """The value node of `key` in a mapping node, if it has one."""
+    if isinstance(node, yaml.MappingNode):
+        for key_node, value in node.value:
+            if key_node.value == key:
+                return value  # type: ignore[no-any-return]
+    return None
+
+
 def _name_node(node: yaml.Node) -> yaml.Node:
     if isinstance(node, yaml.MappingNode):
         for key, value in node.value:
@@ -378,13 +403,22 @@ def _name_node(node: yaml.Node) -> yaml.Node:
     return node
 
 
-def _parameter(reader: Reader, fields: Fields, what: str) -> tuple[str, list[str]] | None:
-    """`parameter: {name: p, values: [...]}` → ("p", values); None when absent or broken."""
+@dataclass(frozen=True)
+class _Parameter:
+    """`parameter: {name, values, display_values}` of an ability or operation."""
+
+    name: str
+    values: list[str]
+    words: dict[str, str]  # value → words for people (display_values), where given
+
+
+def _parameter(reader: Reader, fields: Fields, what: str) -> _Parameter | None:
+    """The parameter of `what`; None when absent or broken (errors recorded)."""
     if "parameter" not in fields:
         return None
     node = fields["parameter"][1]
     parameter = reader.mapping(
-        node, f"the parameter of {what}", ("name", "values"), ("name", "values")
+        node, f"the parameter of {what}", _PARAMETER_KEYS, ("name", "values")
     )
     if parameter is None or "name" not in parameter or "values" not in parameter:
         return None
@@ -397,7 +431,13 @@ def _parameter(reader: Reader, fields: Fields, what: str) -> tuple[str, list[str
         if not values:
             reader.error(parameter["values"][1], "a parameter needs at least one value")
         return None
-    return name, [v for v in values if v is not None]
+    given = [v for v in values if v is not None]
+    words: dict[str, str] = {}
+    if "display_values" in parameter:
+        about = f"the parameter '{name}' of {what}"
+        pairs = read_value_words(reader, parameter["display_values"][1], about, tuple(given))
+        words = {str(value): text for value, text in pairs}
+    return _Parameter(name, given, words)
 
 
 def _read_ability(
@@ -417,11 +457,14 @@ def _read_ability(
         return []
     parameter = _parameter(reader, fields, f"ability '{template}'")
     instances: list[tuple[str, str | None, dict[str, str]]] = (
-        [(f"{template}_{v}", v, {parameter[0]: v}) for v in parameter[1]]
+        [(f"{template}_{v}", v, {parameter.name: v}) for v in parameter.values]
         if parameter
         else [(template, None, {})]
     )
     description = _description(reader, fields)
+    where = f"ability '{resource}.{template}'"
+    display = read_display(reader, fields, where, [parameter.name] if parameter else [])
+    words = parameter.words if parameter else {}
     restart = False
     if "restart" in fields:
         restart = (reader.scalar(fields["restart"][1], "restart") or "").lower() == "true"
@@ -440,7 +483,6 @@ def _read_ability(
     instance_predicates: list[dict[str, Expr]] = []
     for _instance, value, values in instances:
         # messages name the template, so that one mistake is reported once, not per value
-        where = f"ability '{resource}.{template}'"
         local: dict[str, Expr] = {}
         for key, value_node in predicate_nodes:
             scope = scope_for(domains, local, aliases)
@@ -449,7 +491,15 @@ def _read_ability(
         scope = scope_for(domains, local, aliases)
         transitions: list[tuple[Transition, yaml.Node]] = []
         for t_node in transition_nodes:
-            t = read_transition(reader, t_node, scope, variables, values, f"{resource}.{template}.")
+            t = read_transition(
+                reader,
+                t_node,
+                scope,
+                variables,
+                values,
+                f"{resource}.{template}.",
+                parameter_words(words, values),
+            )
             if t is None:
                 continue
             if t.name == "start" and value in extra_nodes:
@@ -465,10 +515,17 @@ def _read_ability(
         and per_instance
         and all(len(ts) == len(per_instance[0]) for ts in per_instance)
     ):
-        for i, (first, _) in enumerate(per_instance[0]):
+        for i, (first, first_node) in enumerate(per_instance[0]):
             same = {(ts[i][0].kind, ts[i][0].guard, ts[i][0].actions) for ts in per_instance}
             if first.name != "start" and len(same) == 1:
                 generic.add(first.name)
+                if parameter and len({ts[i][0].display for ts in per_instance}) > 1:
+                    reader.error(
+                        _key_node(first_node, "display") or first_node,
+                        f"transition '{resource}.{template}.{first.name}' is the same for every "
+                        f"value of '{parameter.name}', so it is made once: its display cannot "
+                        f"name '{{{parameter.name}}}'",
+                    )
 
     compiled: list[tuple[Ability, list[tuple[Transition, yaml.Node]]]] = []
     for k, (instance, value, values) in enumerate(instances):
@@ -490,6 +547,13 @@ def _read_ability(
             tuple(t.name for t, _ in result),
             restart,
             _filled(description, values),
+            fill_checked(
+                reader,
+                _key_node(node, "display"),
+                f"the display of {where}",
+                display,
+                parameter_words(words, values),
+            ),
         )
         compiled.append((ability, result))
     return compiled
@@ -540,23 +604,23 @@ def _with_extras(
 
 def _names_and_values(
     reader: Reader, fields: Fields, what: str
-) -> list[tuple[str, dict[str, str]]] | None:
+) -> tuple[list[tuple[str, dict[str, str]]], _Parameter | None] | None:
     """Instance names and placeholder values for a possibly parameterised operation."""
     text = reader.scalar(fields["name"][1], f"{what} name")
     if text is None:
         return None
     parameter = _parameter(reader, fields, f"{what} '{text}'")
     if parameter is None:
-        return [(text, {})] if reader.name(fields["name"][1], f"{what} name") else None
-    key, values = parameter
+        return ([(text, {})], None) if reader.name(fields["name"][1], f"{what} name") else None
+    key = parameter.name
     result = []
-    for value in values:
+    for value in parameter.values:
         name = substitute(text, {key: value})[0] if "{" + key + "}" in text else f"{text}_{value}"
         if not is_name(name):
             reader.error(fields["name"][1], f"{what} name '{name}' is not a name")
             return None
         result.append((name, {key: value}))
-    return result
+    return result, parameter
 
 
 def _read_operation(
@@ -565,10 +629,15 @@ def _read_operation(
     fields = reader.mapping(node, "an operation", _OPERATION_KEYS, required=("name",))
     if fields is None or "name" not in fields:
         return []
-    instances = _names_and_values(reader, fields, "operation")
-    if instances is None:
+    named = _names_and_values(reader, fields, "operation")
+    if named is None:
         return []
+    instances, parameter = named
     description = _description(reader, fields)
+    template = reader.scalar(fields["name"][1], "operation name")
+    what = f"operation '{template}'"
+    display = read_display(reader, fields, what, [parameter.name] if parameter else [])
+    words = parameter.words if parameter else {}
     result = []
     for name, values in instances:
         where = f"operation '{name}'"
@@ -582,7 +651,16 @@ def _read_operation(
         )
         if pre is None or goal is None or effects is None or actions is None:
             continue
-        result.append(Operation(name, pre, effects, goal, actions, _filled(description, values)))
+        filled = fill_checked(
+            reader,
+            _key_node(node, "display"),
+            f"the display of {what}",
+            display,
+            parameter_words(words, values),
+        )
+        result.append(
+            Operation(name, pre, effects, goal, actions, _filled(description, values), filled)
+        )
     return result
 
 
@@ -606,7 +684,8 @@ def _read_intention(
         return None
     if "always" in fields and always is None:
         return None
-    return Intention(name, pre, goal, always, actions, _description(reader, fields))
+    display = read_display(reader, fields, where)
+    return Intention(name, pre, goal, always, actions, _description(reader, fields), display)
 
 
 def _optional_expr(

@@ -566,17 +566,23 @@ def test_editor_follows_swapped_error_list(open_page: Callable[..., Any], site: 
     assert page.locator(".editor-note").first.is_visible()
 
     # a real htmx swap from the server (with the CSRF header), then a click on an error
+    # (on a line of the model long enough for its column)
+    at = next(
+        n
+        for n, text in enumerate(DEMO_MODEL.read_text().splitlines(), 1)
+        if n >= 40 and len(text) >= 10
+    )
     site.check_fragment = (
         '<ul id="model-errors" class="error-list">'
-        '<li data-line="42" data-column="7">'
+        f'<li data-line="{at}" data-column="7">'
         "expected a list of actions &amp; got &lt;str&gt;</li></ul>"
     )
     site.csrf_headers.clear()
     page.click("#check")
     page.wait_for_function("document.querySelectorAll('.editor-line.is-error').length === 1")
     assert page.evaluate(MARKED) == {
-        "lines": [42],
-        "gutter": [42],
+        "lines": [at],
+        "gutter": [at],
         "notes": ["expected a list of actions & got <str>"],
     }
     assert site.csrf_headers == [CSRF]
@@ -587,7 +593,7 @@ def test_editor_follows_swapped_error_list(open_page: Callable[..., Any], site: 
       return {focused: document.activeElement === ta, line: before.length,
               column: before[before.length - 1].length + 1};
     }""")
-    assert caret == {"focused": True, "line": 42, "column": 7}
+    assert caret == {"focused": True, "line": at, "column": 7}
 
     # an empty list clears the marks
     site.check_fragment = '<ul id="model-errors" class="error-list"></ul>'

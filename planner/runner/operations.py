@@ -19,7 +19,7 @@ from planner.partial_order import independent_operations
 from planner.planning import PlanStatus
 from planner.runner.maintenance import plan_maintenance
 from planner.runner.queries import announce, ask, no_plan_because
-from planner.runner.retries import forget_failures
+from planner.runner.retries import forget_failures, while_blocked
 from planner.runner.state import OperationPlan
 from planner.runner.tick import Tick
 from planner.runner.values import assigned
@@ -177,7 +177,7 @@ def plan_operations(tick: Tick, active: list[str], reason: ReplanReason) -> None
         )
         single, _ = ask(tick, PlanLevel.OPERATIONS, alone, "which intentions fail")
         if not single.found:
-            why = "no operation plan reaches its goal"
+            why = f"no operation plan reaches its goal{while_blocked(tick)}"
             tick.set_intention(intention.name, IntentionState.ERROR, why)
     state.replan_operations = None
     still = state.intentions_in(IntentionState.EXECUTING)

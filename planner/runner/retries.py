@@ -58,6 +58,28 @@ def forget_failures(tick: Tick, name: str) -> None:
     state.blamed_on_timeouts.pop(name, None)
 
 
+def while_blocked(tick: Tick) -> str:
+    """What keeps plans from reaching a goal besides the model itself, as the end of a cause
+    (" while r2 does not answer"), so that the first cause names it: an operator told only
+    that a camera's goal cannot be reached is not told that a robot stopped answering.
+    Names stay model names; pages put them in words (`planner.wording.Wording.text`)."""
+    state = tick.state
+    parts = []
+    if state.unavailable:
+        silent = sorted(state.unavailable)
+        verb = "does" if len(silent) == 1 else "do"
+        parts.append(f"{_joined(silent)} {verb} not answer")
+    disabled = sorted(state.timed_out)
+    if disabled:
+        verb = "is" if len(disabled) == 1 else "are"
+        parts.append(f"{_joined(disabled)} {verb} disabled after a time-out")
+    return f" while {' and '.join(parts)}" if parts else ""
+
+
+def _joined(names: list[str]) -> str:
+    return ", ".join(names[:-1]) + " and " + names[-1] if len(names) > 1 else names[0]
+
+
 def fail_operation(tick: Tick, name: str, why: str) -> None:
     """`name` goes to error with `why`; the operation plan may not count it as started."""
     state = tick.state

@@ -23,7 +23,7 @@ from planner.runner.queries import (
     transition_query,
 )
 from planner.runner.restart import follow_reset_plan
-from planner.runner.retries import count_failure, fail_operation
+from planner.runner.retries import count_failure, fail_operation, while_blocked
 from planner.runner.tick import Tick
 from planner.runner.vocabulary import PlanLevel, ReplanReason
 
@@ -87,7 +87,10 @@ def which_operations_fail(tick: Tick, executing: list[str]) -> list[str]:
     return failed
 
 
-def fail_operations(tick: Tick, names: list[str], why: str = "its goal cannot be reached") -> None:
+def fail_operations(tick: Tick, names: list[str], why: str = "") -> None:
+    """`names` go to error; `why` defaults to the goal being out of reach, and what blocks
+    it (a resource that does not answer, a disabled effect)."""
+    why = why or f"its goal cannot be reached{while_blocked(tick)}"
     for name in names:
         count = count_failure(tick, name, blame_timeouts=True)
         counted = why + (f" ({count} failures)" if count > 1 else "")

@@ -1,5 +1,8 @@
 """What the station is waiting for, and from whom (DESIGN.md section 8's `waiting_for`).
 
+Texts name things by their model names, written so that a page can put each in words
+(`planner.wording.Wording.text`: "r2 to answer again" → "robot 2 to answer again").
+
 Read off the runner's state, never stored: an approval or a maintenance step is the
 operator's, a resource that stopped answering is a device's, and where nothing in the model
 gets the station out (no recovery plan, halted automatics, an intention in error with no
@@ -65,20 +68,18 @@ def _stopped(runner: Runner, state: RunnerState) -> list[Waiting]:
             Waiting(
                 Who.ENGINEER,
                 names,
-                f"forbidden state ({names} violated) and no recovery plan without the rejected "
+                f"forbidden state, broken: {names}; no recovery plan without the rejected "
                 "steps: put it right in restart mode",
             )
         )
     for effect in sorted(state.timed_out):
         owner = runner.index.owner.get(effect, "")
-        described = runner.index.model.transition(effect).description
-        what = f"{effect} ({described})" if described else effect
         on = f" on {owner}" if owner else ""
         out.append(
             Waiting(
                 Who.ENGINEER,
                 effect,
-                f"{what} did not happen in time{on}: mend {owner or 'it'}, then re-enable it",
+                f"{effect} did not happen in time{on}: mend {owner or 'it'}, then re-enable it",
             )
         )
     if state.restart_mode:
@@ -97,7 +98,7 @@ def _people(runner: Runner, state: RunnerState) -> list[Waiting]:
                 Waiting(
                     Who.OPERATOR,
                     name,
-                    f"approve or reject recovery step {k + 1}: {runner.index.describe(name)}",
+                    f"approve or reject recovery step {k + 1}: {name}",
                 )
             )
         out += _maintenance_steps(runner, recovery, recovery.approved - recovery.taken)
@@ -132,7 +133,7 @@ def _devices(runner: Runner, state: RunnerState) -> list[Waiting]:
                 continue  # said above
             who = Who.OPERATOR if effect in index.person_effects else Who.DEVICE
             described = index.model.transition(effect).description
-            what = described or f"{owner or 'a device'} to report it ({index.describe(effect)})"
+            what = described or f"{owner or 'a device'} to report: {effect}"
             out.append(Waiting(who, effect, what))
     return out
 
@@ -165,7 +166,7 @@ def _working_on(runner: Runner, state: RunnerState, active: list[str]) -> list[W
     """Nothing stopped: the operations in progress (or, between them, the intentions)."""
     executing = state.operations_in(OperationState.EXECUTING)
     if executing:
-        return [
-            Waiting(Who.DEVICE, name, f"operation {name} in progress") for name in sorted(executing)
-        ]
-    return [Waiting(Who.DEVICE, name, f"the station plans {name}") for name in sorted(active)]
+        return [Waiting(Who.DEVICE, name, f"in progress: {name}") for name in sorted(executing)]
+    return [
+        Waiting(Who.DEVICE, name, f"the station plans how to {name}") for name in sorted(active)
+    ]
