@@ -10,6 +10,14 @@ history.  Pure: no I/O, and time is passed in as `now` (seconds since the epoch)
     condition clears         UNACKED -> RTN_UNACKED;    ACKED -> NORMAL
     shelved (time-limited)   any but SHELVED -> SHELVED
     unshelved / expired      SHELVED -> UNACKED if the condition holds, else NORMAL
+    its run ended            RTN_UNACKED -> NORMAL  (`end_run`, said why in the note)
+
+A run ends when production finishes (no intention executing or in error any more), when
+the station is reset to a start state (an experiment), or when production starts again on
+an idle station (alarms raised while it stood): an alarm whose condition came and went in a
+run that is over asks nothing of anyone any more, so it is closed with the reason on record
+(the audit log keeps it) instead of piling up for a person to acknowledge by rote.  Active
+alarms are never closed this way: they wait for a person as ever.
 """
 
 from __future__ import annotations
@@ -21,6 +29,7 @@ from enum import StrEnum
 from planner.expressions import variables_of
 from planner.runner import IntentionState, OperationState, Runner, RunnerState
 from planner.runner.waiting import Who, waiting_for
+from planner.wording import Wording
 
 SHELVE_LIMIT = 8 * 60.0  # minutes: a shelved alarm comes back within a shift
 
@@ -45,6 +54,10 @@ class AlarmState(StrEnum):
     SHELVED = "shelved"
 
 
+# the states that wait for a person's acknowledgement: what the alarm badge counts
+WAITING = frozenset({AlarmState.UNACKED, AlarmState.RTN_UNACKED})
+
+
 @dataclass(frozen=True, slots=True)
 class Condition:
     """An alarm condition that holds now; `key` is its identity across ticks."""
@@ -55,8 +68,13 @@ class Condition:
     resource: str = ""  # the resource it concerns, for the audit log's filter ("" if none)
 
 
-def conditions(runner: Runner, state: RunnerState) -> dict[str, Condition]:
-    """The alarm conditions of a runner state, in words from the model's descriptions."""
+def conditions(
+    runner: Runner, state: RunnerState, words: Wording | None = None
+) -> dict[str, Condition]:
+    """The alarm conditions of a runner state, in people's words (`words`, the active
+    model's `planner.wording.Wording`; built from the runner's station when not given): an
+    operator reads them, so no model identifier appears (the key keeps the name)."""
+    words = words or Wording(runner.station)
     out: dict[str, Condition] = {}
 
     def add(key: str, priority: Priority, message: str, resource: str = "") -> None:
@@ -66,39 +84,39 @@ def conditions(runner: Runner, state: RunnerState) -> dict[str, Condition]:
         add(
             "halted",
             Priority.CRITICAL,
-            f"automatic steps are halted ({state.halted}); "
+            f"automatic steps are halted ({words.text(state.halted)}); "
             "the station model needs an engineer's fix",
         )
     violated = runner.semantics.violated(runner.index.as_state(state.values))
     if violated or state.recovery is not None:
-        specs = ", ".join(violated or sorted(state.relaxed)) or "a specification"
+        broken = violated or sorted(state.relaxed)
+        rules = "; ".join(words.specification(s) for s in broken) or "a rule of the station"
         if state.recovery is None:
             what = "no recovery plan was found; the station needs a person"
         elif violated:
             what = "recovery in progress: approve its steps"
         else:
-            what = "the specifications hold again; approve the rest of the recovery"
-        add("forbidden", Priority.CRITICAL, f"forbidden state: {specs} violated; {what}")
+            what = "the rules hold again; approve the rest of the recovery"
+        add("forbidden", Priority.CRITICAL, f"forbidden state, broken: {rules}; {what}")
     resources = {r.name: r for r in runner.station.resources}
     for name in sorted(state.unavailable):
-        about = resources[name].description if name in resources else ""
+        about = words.text(resources[name].description) if name in resources else ""
         add(
             f"resource:{name}",
             Priority.HIGH,
-            f"{name} is not answering (no heartbeat)"
+            f"{words.resource(name)} is not answering (no heartbeat)"
             + (f": {about}" if about else "")
-            + "; its transitions are disabled until it answers",
+            + "; its steps are disabled until it answers",
             name,
         )
     # where nobody is asked to help, the engineer is: say why and what to do
     engineer = {w.subject: w.what for w in waiting_for(runner, state) if w.who is Who.ENGINEER}
     for name in sorted(state.intentions_in(IntentionState.ERROR)):
-        what = "no plan of operations reaches its goal"
+        what = "in error, no plan of operations reaches its goal"
         waiting = "; maintenance steps wait on the task cards" if state.maintenance else ""
         if name in engineer:
-            waiting = f"; {engineer[name]}"
-        about = runner.index.intentions[name].description
-        add(f"intention:{name}", Priority.HIGH, _words("intention", name, about, what) + waiting)
+            waiting = f"; {words.text(engineer[name])}"
+        add(f"intention:{name}", Priority.HIGH, f"{words.intention(name)}: {what}{waiting}")
     # an operation in error matters while production needs the station: once no intention is
     # executing it waits, harmless, until the background check releases it
     busy = (IntentionState.EXECUTING, IntentionState.ERROR)
@@ -107,34 +125,26 @@ def conditions(runner: Runner, state: RunnerState) -> dict[str, Condition]:
             add(
                 f"operation:{name}",
                 Priority.MEDIUM,
-                _operation_message(runner, state, name),
+                _operation_message(runner, state, words, name),
                 _operation_resource(runner, name),
             )
     for name in sorted(state.timed_out):
-        about = runner.model.transition(name).description
         what = "it did not happen in time; planning leaves it out until it is re-enabled"
         add(
             f"effect:{name}",
             Priority.LOW,
-            _words("effect", name, about, what),
+            f"{words.step(name)}: {what}",
             runner.index.owner.get(name, ""),
         )
     return out
 
 
-def _words(kind: str, name: str, description: str, what: str) -> str:
-    """The model's plain words first, then the name an engineer looks up."""
-    if kind != "effect":
-        what = f"in error, {what}"
-    return f"{description}: {what} ({kind} {name})" if description else f"{kind} {name}: {what}"
-
-
-def _operation_message(runner: Runner, state: RunnerState, name: str) -> str:
+def _operation_message(runner: Runner, state: RunnerState, words: Wording, name: str) -> str:
     failures = state.failures.get(name, 0)
-    what = "its goal cannot be reached"
+    what = "in error, its goal cannot be reached"
     if failures >= runner.config.retries:
         what += f"; it failed {failures} times and is not retried"
-    return _words("operation", name, runner.index.operations[name].description, what)
+    return f"{words.operation(name)}: {what}"
 
 
 def _operation_resource(runner: Runner, name: str) -> str:
@@ -165,6 +175,11 @@ class Alarm:
     shelved_until: float | None = None
     # the state it was shelved from, for the record: unshelving follows the condition
     shelved_state: AlarmState | None = None
+
+    @property
+    def waiting(self) -> bool:
+        """Does it wait for a person's acknowledgement (active or returned, not shelved)?"""
+        return self.state in WAITING
 
 
 @dataclass(frozen=True, slots=True)
@@ -237,13 +252,42 @@ class AlarmBook:
         elif alarm.state is AlarmState.RTN_UNACKED:
             after = AlarmState.NORMAL
         elif alarm.state is AlarmState.SHELVED:
-            raise AlarmError(f"alarm {key} is shelved; unshelve it to acknowledge it")
+            raise AlarmError(f"{_called(alarm)} is shelved; unshelve it to acknowledge it")
         elif alarm.state is AlarmState.ACKED:
-            raise AlarmError(f"alarm {key} is already acknowledged")
+            raise AlarmError(f"{_called(alarm)} is already acknowledged")
         else:
-            raise AlarmError(f"alarm {key} is normal: there is nothing to acknowledge")
+            raise AlarmError(f"{_called(alarm)} is normal: there is nothing to acknowledge")
         alarm.acked_by, alarm.acked_at, alarm.note = user, now, note
         return self._move(alarm, after, user, note, now)
+
+    def acknowledge_all(
+        self, keys: Iterable[str], user: str, note: str, now: float
+    ) -> list[AlarmChange]:
+        """Acknowledge those of `keys` (the alarms a person was shown) that still wait, with
+        one note; the others were answered or cleared meanwhile and are left alone.  Refused
+        when none of them waits: then nothing was acknowledged."""
+        _need_user(user, "acknowledge")
+        wanted = list(dict.fromkeys(keys))
+        waiting = [k for k in wanted if k in self._alarms and self._alarms[k].waiting]
+        if not waiting:
+            unknown = [k for k in wanted if k not in self._alarms]
+            if not wanted:
+                why = "no alarm was chosen"
+            elif unknown:
+                why = f"no alarm {', '.join(unknown)}"
+            else:
+                why = "they were acknowledged, shelved or closed meanwhile"
+            raise AlarmError(f"nothing to acknowledge: {why}")
+        return [self.acknowledge(key, user, note, now) for key in waiting]
+
+    def end_run(self, why: str, now: float) -> list[AlarmChange]:
+        """A run ended: each alarm that returned unacknowledged is closed (to normal), with
+        `why` as its note; active and shelved alarms stay as they are (module docstring)."""
+        returned = [a for a in self._alarms.values() if a.state is AlarmState.RTN_UNACKED]
+        return [
+            self._move(a, AlarmState.NORMAL, None, why, now)
+            for a in sorted(returned, key=lambda a: a.key)
+        ]
 
     def shelve(self, key: str, user: str, minutes: float, note: str, now: float) -> AlarmChange:
         """Hide an alarm from the operator's list for a while (a chattering or known one)."""
@@ -252,7 +296,7 @@ class AlarmBook:
         if not 1 <= minutes <= SHELVE_LIMIT:  # NaN fails too
             raise AlarmError(f"shelve for 1 to {SHELVE_LIMIT:g} minutes, not {minutes:g}")
         if alarm.state is AlarmState.SHELVED:
-            raise AlarmError(f"alarm {key} is already shelved; unshelve it first")
+            raise AlarmError(f"{_called(alarm)} is already shelved; unshelve it first")
         alarm.shelved_by, alarm.shelved_until = user, now + 60 * minutes
         alarm.shelved_state, alarm.note = alarm.state, note
         return self._move(alarm, AlarmState.SHELVED, user, note, now)
@@ -261,7 +305,7 @@ class AlarmBook:
         alarm = self._get(key)
         _need_user(user, "unshelve")
         if alarm.state is not AlarmState.SHELVED:
-            raise AlarmError(f"alarm {key} is not shelved")
+            raise AlarmError(f"{_called(alarm)} is not shelved")
         return self._unshelve(alarm, user, "unshelved", now)
 
     def alarms(self, include_normal: bool = False, include_shelved: bool = False) -> list[Alarm]:
@@ -285,8 +329,7 @@ class AlarmBook:
         return sum(a.active and a.state is not AlarmState.SHELVED for a in self._alarms.values())
 
     def unacknowledged_count(self) -> int:
-        unacked = (AlarmState.UNACKED, AlarmState.RTN_UNACKED)
-        return sum(a.state in unacked for a in self._alarms.values())
+        return sum(a.waiting for a in self._alarms.values())
 
     def _get(self, key: str) -> Alarm:
         alarm = self._alarms.get(key)
@@ -309,6 +352,17 @@ class AlarmBook:
             alarm.note = ""
         before, alarm.state = alarm.state, after
         return AlarmChange(alarm.key, before, after, user, note, now, replace(alarm))
+
+
+CALLED_CHARS = 60  # of an alarm's words, in a refusal's message
+
+
+def _called(alarm: Alarm) -> str:
+    """An alarm as a refusal names it: by its words (a person reads them), not its key."""
+    words = alarm.message or alarm.key
+    if len(words) > CALLED_CHARS:
+        words = words[: CALLED_CHARS - 1].rstrip() + "…"
+    return f"the alarm “{words}”"
 
 
 def _need_user(user: str, what: str) -> None:

@@ -9,8 +9,10 @@ import contextlib
 import gc
 import json
 import logging
+import socket
+import threading
 import time
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -48,24 +50,62 @@ def serve(args: argparse.Namespace) -> int:
     # warnings and errors on stderr, and the audit checkpoints: the station's own log
     logging.basicConfig(level=logging.WARNING, format="%(asctime)s %(levelname)s %(message)s")
     logging.getLogger("app.store.checkpoints").setLevel(logging.INFO)
+    say = progress_printer()
     with contextlib.ExitStack() as stack:
         devices = _serve_devices(args, model, stack)
         print(f"starting the station on http://{args.host}:{args.port} (store: {args.db})")
         try:
-            built = _build(args, model, devices)
+            built = _build(args, model, devices, say)
         except KeyFileError as exc:
             raise UsageError(str(exc)) from None
         if built.seeded:
             print("demo users (first-login passwords; each must be changed on first sign-in):")
             for name, role, password in built.seeded:
                 print(f"  {name:<10} {role:<10} {password}")
+        say("starting the station loop")
         built.server.start()
         freeze_what_start_up_built()
+        say(f"starting the web server on {args.host}:{args.port}")
+        say_when_listening(args.host, args.port, say)
         try:
             http_server.run(built.app, args.host, args.port)
         finally:
             built.server.stop()
     return 0
+
+
+def progress_printer(clock: Callable[[], float] = time.monotonic) -> Callable[[str], None]:
+    """Prints each start-up step at once, with the seconds since start-up began."""
+    start = clock()
+
+    def say(line: str) -> None:
+        print(f"[{clock() - start:5.1f} s] {line}", flush=True)
+
+    return say
+
+
+def say_when_listening(
+    host: str, port: int, say: Callable[[str], None], seconds: float = 60.0
+) -> threading.Thread:
+    """Say "listening on http://host:port" once the port takes connections (uvicorn is
+    quiet below warnings), from a daemon thread; nothing if it never does."""
+    target = "127.0.0.1" if host in ("0.0.0.0", "") else "::1" if host == "::" else host
+    shown = f"[{host}]" if ":" in host else host
+
+    def watch() -> None:
+        deadline = time.monotonic() + seconds
+        while time.monotonic() < deadline:
+            try:
+                socket.create_connection((target, port), timeout=0.5).close()
+            except OSError:
+                time.sleep(0.1)
+                continue
+            say(f"listening on http://{shown}:{port} (Ctrl-C to stop)")
+            return
+
+    thread = threading.Thread(target=watch, name="say-when-listening", daemon=True)
+    thread.start()
+    return thread
 
 
 def freeze_what_start_up_built() -> None:
@@ -77,7 +117,12 @@ def freeze_what_start_up_built() -> None:
     gc.freeze()
 
 
-def _build(args: argparse.Namespace, model: Path, devices: DeviceSetup | None) -> Built:
+def _build(
+    args: argparse.Namespace,
+    model: Path,
+    devices: DeviceSetup | None,
+    say: Callable[[str], None] | None = None,
+) -> Built:
     from app.serve import build, default_cache
 
     return build(
@@ -91,6 +136,7 @@ def _build(args: argparse.Namespace, model: Path, devices: DeviceSetup | None) -
         simulated=devices is None or args.emulate,  # the simulation panel acts on emulators
         keys=Path(args.keys) if args.keys else None,
         trusted_proxies=tuple(args.trusted_proxy),
+        progress=say,
     )
 
 

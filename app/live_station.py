@@ -158,6 +158,8 @@ class LiveStation:
         # each round's start (on `clock`) and duration: what `loop_summary` reports
         self.rounds: deque[tuple[float, float]] = deque(maxlen=LOOP_HISTORY)
         self.experiment = ""
+        # why the run ended this round ("" if it did not): its returned alarms are closed
+        self.run_ended = ""
         self.version = 0
         now = self.now()
         saved = records.restore(store, name)
@@ -304,13 +306,20 @@ class LiveStation:
         acting: list[_Request],
     ) -> None:
         """The round's tick and commit; then its requests are answered and pages told."""
+        busy = self._busy_intentions()
         result = self.cycle.step(now, [request.payload for request in acting])
         answers += [
             (request, Acted(reply, result.events))
             for request, reply in zip(acting, result.replies, strict=True)
         ]
         entries += [records.event_entry(self.runner, event) for event in result.events]
-        changes = self.book.update(conditions(self.runner, self.state), self.wall())
+        found = conditions(self.runner, self.state, self.model.words)
+        changes = self.book.update(found, self.wall())
+        ended = self.run_ended or (self._run_over(busy) if busy else self._new_run(acting))
+        if ended:
+            why = f"closed: the run it belonged to ended ({ended})"
+            changes += self.book.end_run(why, self.wall())
+            self.run_ended = ""
         entries += [records.alarm_entry(c) for c in changes]
         data = snapshot.dump(self.state)
         compared = records.compared(data)
@@ -334,7 +343,7 @@ class LiveStation:
             request.future.set_result(answer)
         if changed:
             kinds = {"station", *self.updates.changed_areas(self.view)}
-            if changes:
+            if any(entry.kind == "alarm" for entry in entries):  # a person's changes too
                 kinds.add("alarm")
             self.updates.notify(kinds)
 
@@ -383,6 +392,10 @@ class LiveStation:
 
     def acknowledge(self, key: str, user: str, note: str) -> Future[AlarmChange]:
         return self._submit("acknowledge", (key, note), user)
+
+    def acknowledge_all(self, keys: list[str], user: str, note: str) -> Future[list[AlarmChange]]:
+        """Acknowledge, in one round, those of the alarms a person was shown that still wait."""
+        return self._submit("acknowledge_all", (keys, note), user)
 
     def shelve(self, key: str, user: str, minutes: float, note: str) -> Future[AlarmChange]:
         return self._submit("shelve", (key, minutes, note), user)
@@ -435,6 +448,14 @@ class LiveStation:
                 return self._alarm(
                     entries, lambda: self.book.acknowledge(key, user, note, self.wall())
                 )
+            case "acknowledge_all":
+                keys, note = payload
+                try:
+                    acknowledged = self.book.acknowledge_all(keys, user, note, self.wall())
+                except AlarmError as exc:
+                    raise StationError(str(exc)) from None
+                entries.extend(records.alarm_entry(change) for change in acknowledged)
+                return acknowledged
             case "shelve":
                 key, minutes, note = payload
                 return self._alarm(
@@ -456,6 +477,43 @@ class LiveStation:
             raise StationError(str(exc)) from None
         entries.append(records.alarm_entry(done))
         return done
+
+    def _busy_intentions(self) -> set[str]:
+        """The intentions production is busy with: executing, or in error."""
+        state = self.state
+        return {
+            *state.intentions_in(IntentionState.EXECUTING),
+            *state.intentions_in(IntentionState.ERROR),
+        }
+
+    def _run_over(self, busy: set[str]) -> str:
+        """Why the run ended this round ("" if it did not): the intentions it was busy with
+        finished or were cancelled, and none is executing or in error now."""
+        if self._busy_intentions():
+            return ""
+        words = self.model.words
+        finished = sorted(
+            n for n in busy if self.state.intentions.get(n) == IntentionState.FINISHED
+        )
+        cancelled = sorted(n for n in busy if n not in finished)
+        said = [f"{words.names(finished)} finished"] if finished else []
+        said += [f"{words.names(cancelled)} stopped"] if cancelled else []
+        return "; ".join(said)
+
+    def _new_run(self, acting: list[_Request]) -> str:
+        """Why this round began a new run on an idle station ("" if it did not): a person
+        started an intention, and it left its initial or finished state (its precondition
+        held)."""
+        begun = (IntentionState.EXECUTING, IntentionState.ERROR)
+        for request in acting:
+            action = request.payload
+            if (
+                isinstance(action, StartIntention)
+                and self.state.intentions.get(action.name) in begun
+            ):
+                intention = self.model.words.intention(action.name)
+                return f"{action.user} started {intention} on an idle station"
+        return ""
 
     def busy(self) -> str:
         """Why a model cannot be swapped now ("" when it can)."""
@@ -517,6 +575,7 @@ class LiveStation:
         faults = [replace(f, at=None if f.at is None else now + f.at) for f in scenario.faults]
         self.cycle = StationCycle(runner, self.devices, state, faults)
         self.experiment = title
+        self.run_ended = f"{user} played the experiment {title}"
         entries.append(AuditEntry("experiment", title, user, "", {"file": scenario.file}))
         for name in scenario.intentions or ():
             self.requests.put(_Request("action", StartIntention(user=user, name=name), user))

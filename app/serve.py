@@ -1,7 +1,9 @@
 """Starting a station process: store, active model, live station, web application.
 
 `sp serve` calls `build`, prints the seeded users, and runs uvicorn; tests do the same
-through a real subprocess.
+through a real subprocess.  `build` says each step as it starts (`progress`): a cold start
+takes some seconds, most of them synthesising the supervisor, and a silent terminal looks
+like a hung one.
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ from app.store.keys import default_key_path
 from app.store.sealing import seal_store
 from app.throttle import SignInThrottle
 from app.user_sessions import ApiTokens
-from app.views import task_cards
+from app.views import station_activity, task_cards
 from app.web.app import create_app
 from app.web.server import ROOT, Server, parse_networks
 from hw.device_file import DeviceFile
@@ -66,6 +68,7 @@ def build(
     keys: Path | None = None,
     trusted_proxies: tuple[str, ...] = (),
     checkpoint_period: float = 60.0,
+    progress: Callable[[str], None] | None = None,
 ) -> Built:
     """Open (and migrate) the store, load the active model, restore the station, make the app.
 
@@ -73,7 +76,10 @@ def build(
     `keys`: the key file (app.store.keys; by default beside a SQLite file).
     `trusted_proxies`: addresses (or networks) of reverse proxies whose X-Forwarded-For is
     believed; none by default.
+    `progress`: told each step as it starts, in words (`sp serve` prints them).
     """
+    say = progress or (lambda _line: None)
+    say("opening the store")
     store = open_store(url)
     store.upgrade()
     text = model_path.read_text(encoding="utf-8")
@@ -89,9 +95,15 @@ def build(
         ]
 
     seeded = audit.write(store, name, added, time.time(), also=seed) or []
+    say(f"loading the model {model_path.name}")
     with store.sessions.begin() as session:
         version = versions.ensure_active(session, name, text, "sp serve")
+    say(
+        f"preparing the planners of model version {version.number}: its supervisor is"
+        " synthesised on its first start (some seconds), later read from the cache"
+    )
     model = build_model(version, cache)
+    say("restoring the station's last state")
     live = LiveStation(
         store,
         name,
@@ -103,7 +115,12 @@ def build(
         devices=devices,
     )
     # the task page shows the cards, and restart mode when there are none
-    live.watch_area("tasks", lambda view: (task_cards(view), view.state.restart_mode))
+    live.watch_area(
+        "tasks",
+        lambda view: (task_cards(view), view.state.restart_mode, station_activity(view)),
+    )
+    if simulated:
+        say("loading the experiments E1-E9")
     server = Server(
         store,
         live,

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
@@ -122,14 +123,17 @@ def test_priority_and_message_follow_the_condition_without_a_state_change() -> N
     ("act", "message"),
     [
         (lambda b: b.acknowledge("nope", "ada", "", T0), "no alarm nope"),
-        (lambda b: b.acknowledge("acked", "ada", "", T0), "alarm acked is already acknowledged"),
+        (
+            lambda b: b.acknowledge("acked", "ada", "", T0),
+            "the alarm “acked is wrong” is already acknowledged",
+        ),
         (lambda b: b.acknowledge("normal", "ada", "", T0), "nothing to acknowledge"),
         (lambda b: b.acknowledge("new", " ", "", T0), "say who you are"),
         (lambda b: b.shelve("new", "ada", 0, "", T0), "shelve for 1 to 480 minutes, not 0"),
         (lambda b: b.shelve("new", "ada", -5, "", T0), "shelve for 1 to 480 minutes"),
         (lambda b: b.shelve("new", "ada", SHELVE_LIMIT + 1, "", T0), "1 to 480 minutes, not 481"),
         (lambda b: b.shelve("new", "ada", math.nan, "", T0), "shelve for 1 to 480 minutes"),
-        (lambda b: b.unshelve("new", "ada", T0), "alarm new is not shelved"),
+        (lambda b: b.unshelve("new", "ada", T0), "the alarm “new is wrong” is not shelved"),
         (lambda b: b.shelve("nope", "ada", 5, "", T0), "no alarm nope"),
     ],
 )
@@ -244,6 +248,80 @@ def test_the_book_restored_from_its_rows_goes_on_the_same() -> None:
         AlarmBook([*rows, rows[0]])
 
 
+def test_acknowledge_all_answers_those_shown_that_still_wait_with_one_note() -> None:
+    book = AlarmBook()
+    book.update({"a": cond("a"), "b": cond("b"), "c": cond("c"), "d": cond("d")}, T0)
+    book.acknowledge("b", "bob", "mine", T0 + 1)  # answered on another device meanwhile
+    book.shelve("c", "bob", 10, "", T0 + 1)
+    book.update({"a": cond("a"), "b": cond("b"), "c": cond("c")}, T0 + 2)  # d returns
+    changes = book.acknowledge_all(["a", "b", "c", "d", "a", "gone"], "ada", "one note", T0 + 3)
+    assert moves(changes) == [("a", UNACKED, ACKED), ("d", RTN_UNACKED, NORMAL)]
+    assert {(c.user, c.note, c.at) for c in changes} == {("ada", "one note", T0 + 3)}
+    assert book.alarm("b").acked_by == "bob" and book.alarm("b").note == "mine"
+    assert book.alarm("c").state is SHELVED
+    # the same page sent again, after an alarm was raised that it did not show: refused, and
+    # the new alarm still waits
+    book.update({"a": cond("a"), "b": cond("b"), "c": cond("c"), "e": cond("e")}, T0 + 4)
+    with pytest.raises(AlarmError, match="nothing to acknowledge"):
+        book.acknowledge_all(["a", "b", "c", "d"], "ada", "", T0 + 5)
+    assert book.alarm("e").state is UNACKED and book.unacknowledged_count() == 1
+
+
+@pytest.mark.parametrize(
+    ("keys", "message"),
+    [
+        ([], "nothing to acknowledge: no alarm was chosen"),
+        (["gone", "x"], "nothing to acknowledge: no alarm gone, x"),
+        (["acked", "shelved"], "they were acknowledged, shelved or closed meanwhile"),
+    ],
+)
+def test_acknowledge_all_with_nothing_waiting_is_refused_and_changes_nothing(
+    keys: list[str], message: str
+) -> None:
+    book = AlarmBook()
+    book.update({"acked": cond("acked"), "shelved": cond("shelved"), "new": cond("new")}, T0)
+    book.acknowledge("acked", "bob", "", T0)
+    book.shelve("shelved", "bob", 5, "", T0)
+    before = book.alarms(include_normal=True, include_shelved=True)
+    with pytest.raises(AlarmError, match=message):
+        book.acknowledge_all(keys, "ada", "", T0 + 1)
+    with pytest.raises(AlarmError, match="say who you are"):
+        book.acknowledge_all(["new"], "", "", T0 + 1)
+    assert book.alarms(include_normal=True, include_shelved=True) == before
+
+
+def test_the_end_of_a_run_closes_its_returned_alarms_and_keeps_what_is_active_or_shelved() -> None:
+    book = AlarmBook()
+    keys = ("returned", "returned_too", "active", "acked", "shelved_gone")
+    book.update({k: cond(k) for k in keys}, T0)
+    book.acknowledge("acked", "bob", "", T0 + 1)
+    book.shelve("shelved_gone", "bob", 30, "", T0 + 1)
+    book.update({"active": cond("active"), "acked": cond("acked")}, T0 + 2)
+    why = "closed: the run it belonged to ended (ada played the experiment E6)"
+    changes = book.end_run(why, T0 + 3)
+    assert moves(changes) == [
+        ("returned", RTN_UNACKED, NORMAL),
+        ("returned_too", RTN_UNACKED, NORMAL),
+    ]
+    assert {(c.user, c.note, c.at) for c in changes} == {(None, why, T0 + 3)}
+    states = {a.key: a.state for a in book.alarms(include_normal=True, include_shelved=True)}
+    assert states == {
+        "returned": NORMAL,
+        "returned_too": NORMAL,
+        "active": UNACKED,  # unacknowledged and active: never closed, never hidden
+        "acked": ACKED,
+        "shelved_gone": SHELVED,
+    }
+    assert [a.key for a in book.alarms()] == ["active", "acked"]
+    assert book.end_run(why, T0 + 4) == []  # nothing left to close
+    # the closed ones come back as new occurrences when their condition appears again
+    assert moves(book.update({"returned": cond("returned")}, T0 + 5))[0] == (
+        "returned",
+        NORMAL,
+        UNACKED,
+    )
+
+
 # -- the property: states always match the conditions, and every change is reported ---------------
 
 KEYS = ("a", "b")
@@ -253,11 +331,14 @@ ALLOWED: dict[str, set[tuple[AlarmState | None, AlarmState]]] = {
     "condition cleared": {(UNACKED, RTN_UNACKED), (ACKED, NORMAL)},
     "seen": {(UNACKED, ACKED), (RTN_UNACKED, NORMAL)},  # acknowledged
     "shelved": {(s, SHELVED) for s in (UNACKED, ACKED, RTN_UNACKED, NORMAL)},
+    "run ended": {(RTN_UNACKED, NORMAL)},  # closed, with the reason
 }
 steps = st.lists(
     st.one_of(
         st.tuples(st.just("set"), st.sampled_from(KEYS), st.booleans(), st.sampled_from(Priority)),
         st.tuples(st.just("ack"), st.sampled_from((*KEYS, "x"))),
+        st.tuples(st.just("ack_all"), st.lists(st.sampled_from((*KEYS, "x")), max_size=3)),
+        st.tuples(st.just("end_run")),
         st.tuples(st.just("shelve"), st.sampled_from(KEYS), st.sampled_from((0, 1, 5, 480, 481))),
         st.tuples(st.just("unshelve"), st.sampled_from(KEYS)),
         st.tuples(st.just("wait"), st.sampled_from((0.0, 1.0, 59.0, 300.0, 3600.0, 30_000.0))),
@@ -294,6 +375,17 @@ def test_alarm_states_match_their_conditions_and_every_change_is_reported(
                     assert changes[0].after is (ACKED if state is UNACKED else NORMAL)
                 except AlarmError:
                     assert state not in (UNACKED, RTN_UNACKED)
+            case ("ack_all", list(keys)):
+                waiting = [k for k in dict.fromkeys(keys) if k in before and before[k].waiting]
+                try:
+                    changes += book.acknowledge_all(keys, "ada", "seen", now)
+                    assert [c.key for c in changes] == waiting
+                except AlarmError:
+                    assert waiting == []
+            case ("end_run",):
+                returned = [k for k, a in sorted(before.items()) if a.state is RTN_UNACKED]
+                changes += book.end_run("run ended", now)
+                assert [c.key for c in changes] == returned
             case ("shelve", str(key), int(minutes)):
                 try:
                     changes.append(book.shelve(key, "ada", minutes, "shelved", now))
@@ -376,6 +468,25 @@ def play_with_alarms(
     return book, changes, events
 
 
+def identifiers(station: Station) -> set[str]:
+    """The model's names a person must not read: those with a digit, "_" or "." (r2, bp3.state,
+    get_nr_r2), and "nr"; plain words such as "operator" are words."""
+    model = station.model
+    names = {r.name for r in station.resources} | {o.name for o in station.operations}
+    names |= {i.name for i in station.intentions} | {s.name for s in model.specifications}
+    names |= {v.name for v in model.variables} | {t.name for t in model.transitions}
+    return {n for n in names if n == "nr" or re.search(r"[\d_.]", n)}
+
+
+def assert_in_words(book: AlarmBook, station: Station) -> None:
+    """Every alarm's message in people's words: no model identifier, no paper reference."""
+    names = identifiers(station)
+    for alarm in book.alarms(include_normal=True, include_shelved=True):
+        tokens = set(re.findall(r"[A-Za-z_][\w.]*[\w]", alarm.message))
+        assert not tokens & names, f"{alarm.key}: {alarm.message}"
+        assert not re.search(r"seed \d|Figure|Table [IVX]", alarm.message), alarm.message
+
+
 def test_e6_raises_r2_and_error_alarms_and_only_r2_stays(demo: tuple[Station, Planners]) -> None:
     book, changes, events = play_with_alarms(demo, "e6_r2_disconnects_above_engine")
     (lost,) = [t for t, kind, subject in events if (kind, subject) == ("unavailable", "r2")]
@@ -386,10 +497,11 @@ def test_e6_raises_r2_and_error_alarms_and_only_r2_stays(demo: tuple[Station, Pl
         Priority.HIGH,
         "r2",
     )
-    assert "r2 is not answering" in r2.alarm.message and "UR10" in r2.alarm.message
+    assert r2.alarm.message.startswith("robot 2 is not answering") and "UR10" in r2.alarm.message
     raised = {c.key: c.alarm for c in changes if c.before is None}
     assert raised["operation:get_nr_r2"].priority is Priority.MEDIUM
-    assert "r2 docks onto nr: in error" in raised["operation:get_nr_r2"].message
+    assert raised["operation:get_nr_r2"].message.startswith("robot 2 takes the nutrunner: in error")
+    assert_in_words(book, demo[0])
     assert raised["intention:tighten_bolts"].priority is Priority.HIGH
     # production finished; r2 never answers again in E6, so its alarm alone is still active
     assert [a.key for a in book.alarms(include_normal=True) if a.active] == ["resource:r2"]
@@ -426,7 +538,9 @@ def test_e2_forbidden_state_is_critical_until_recovery(demo: tuple[Station, Plan
     ]
     assert [c.at for c in changes] == [forbidden, forbidden, recovered]
     alarm = changes[0].alarm
-    assert alarm.priority is Priority.CRITICAL and "oil_filters_after_bolts" in alarm.message
+    assert alarm.priority is Priority.CRITICAL
+    assert "broken: oil filters only after every bolt pair is tightened" in alarm.message
+    assert_in_words(book, demo[0])
     assert book.active_count() == 0
 
 
@@ -470,5 +584,6 @@ def test_a_dead_end_alarm_names_the_cause_and_whom_it_waits_for(
     states: list[RunnerState] = []
     list(play(station, scenario, planners, watch=states.append))
     alarm = conditions(runner, states[-1])["intention:tighten_bolts"]
-    assert "r1_cam.locate_tool.miss happened instead of" in alarm.message
+    assert "the scan found nothing happened instead of tools located" in alarm.message
+    assert not set(re.findall(r"[\w.]+", alarm.message)) & identifiers(station), alarm.message
     assert "mend the cause, or decide in restart mode" in alarm.message

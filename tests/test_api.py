@@ -73,7 +73,9 @@ def test_roles_limit_what_a_caller_may_do(
 ) -> None:
     response = client.post("/api/models/1/activate", headers=auth["operator"])
     assert response.status_code == 403
-    assert response.json()["detail"] == "a operator may not do this (needs 'activate')"
+    assert response.json()["detail"] == (
+        "your role (operator) cannot do this (it needs the 'activate' permission)"
+    )
     for path in ("/api/intentions/assemble_engine/start", "/api/restart"):
         response = client.post(path, headers=auth["auditor"], json={"mode": "leave"})
         assert response.status_code == 403, path

@@ -61,7 +61,8 @@ def ids_on(html: str) -> list[int]:
 
 
 def subjects_on(html: str) -> list[str]:
-    return re.findall(r'<td data-label="Subject">([^<]*)</td>', html)
+    """The records' subjects as stored (the cells show them in words)."""
+    return re.findall(r'<td data-label="Subject" data-subject="([^"]*)">', html)
 
 
 def test_only_signed_in_users_with_the_audit_permission_see_the_log(
@@ -105,7 +106,7 @@ def test_a_row_shows_time_user_kind_subject_resource_and_detail(auditor: TestCli
     assert '<time datetime="2001-02-03T04:07:00.000Z">' in cells
     assert '<td data-label="User">bob</td>' in cells
     assert '<td data-label="Kind">operator</td>' in cells
-    assert '<td data-label="Resource">r2</td>' in cells
+    assert '<td data-label="Resource" data-resource="r2">robot 2</td>' in cells
     assert "<details>" in cells and "i: 7, why: test 7" in cells
     assert "&#34;why&#34;: &#34;test 7&#34;" in cells or '"why": "test 7"' in cells
 
@@ -210,3 +211,42 @@ def test_a_bad_filter_is_a_422_that_says_what_to_fix(
         answer = station.client().get("/api/audit", params=query, headers=headers)
         assert answer.status_code == 422
         assert message in answer.json()["detail"]
+
+
+def test_the_page_shows_peoples_records_and_the_stations_events_one_click_away(
+    station: RunningStation, auditor: TestClient
+) -> None:
+    """Issue 16: station records (hundreds an hour) buried people's; the page now shows what
+    people did, sign-ins, model changes and alarms (the station's own alarm changes too),
+    and links to the station's events and to everything, keeping the rest of the filter."""
+    srv = station.built.server
+    at = datetime(2003, 4, 5, 6, 0, tzinfo=UTC).timestamp()
+    kept = [
+        AuditEntry("started", "r1.goto_bp1", "", "r1", {"station_time": 1.0}),  # the station's
+        AuditEntry("login", "signed in", "ann", "", {"address": "10.0.0.7"}),
+        AuditEntry("alarm", "resource:r2", "", "r2", {"after": "unacknowledged"}),
+        AuditEntry("model", "activated", "bob", "", {"version": 2}),
+    ]
+    for k, one in enumerate(kept):
+        audit.write(srv.store, srv.live.name, [one], at + k)
+    when = {"since": "2003-04-05T06:00", "until": "2003-04-05T06:59"}
+    page = auditor.get("/audit", params=when).text
+    assert subjects_on(page) == ["activated", "resource:r2", "signed in"]
+    assert '<td data-label="Subject" data-subject="resource:r2">resource: robot 2</td>' in page
+    assert "subject: resource:r2" in page  # as stored, in the record's opened detail
+    switch = dict(re.findall(r'href="([^"]+)" data-show="(\w+)"', page))
+    links = {show: href.replace("&amp;", "&") for href, show in switch.items()}
+    assert set(links) == {"people", "station", "all"}
+    assert 'data-show="people" aria-current="page"' in page
+    assert "since=2003-04-05T06%3A00" in links["station"]
+    assert subjects_on(auditor.get(links["station"]).text) == ["r1.goto_bp1"]
+    assert len(subjects_on(auditor.get(links["all"]).text)) == 4
+    # the page's export takes what the page shows; the CSV and the API default to everything
+    csv_link = re.search(r'href="(/audit\.csv[^"]*)"', page)
+    assert csv_link and "show=people" in csv_link.group(1)
+    exported = auditor.get(csv_link.group(1).replace("&amp;", "&")).text
+    assert len(list(csv.reader(io.StringIO(exported)))) == 1 + 3
+    everything = auditor.get("/audit.csv", params=when).text
+    assert len(list(csv.reader(io.StringIO(everything)))) == 1 + 4
+    wrong = auditor.get("/audit", params={**when, "show": "robots"})
+    assert wrong.status_code == 422 and "one of people, station, all" in wrong.text

@@ -62,7 +62,7 @@ def _optional_routers(app: FastAPI) -> None:
     """Areas built in their own modules (engineer, audit, API), included when present."""
     import importlib
 
-    for name in ("engineer", "audit", "api", "users"):
+    for name in ("engineer", "audit", "api", "users", "alarms", "assets", "station_pages"):
         try:
             module = importlib.import_module(f"app.web.{name}")
         except ModuleNotFoundError as exc:

@@ -1,10 +1,14 @@
 """The auditor's pages: the audit log, filtered and paged, and its CSV export.
 
 The filter lives in the query string, so a filtered view can be bookmarked or sent on, and
-the CSV export takes the same parameters.  Times are UTC throughout: the form's
-`datetime-local` inputs are read as UTC, and ISO 8601 with a zone is accepted in the query
-string.  A filter that cannot be read is a 422 that says what to fix.  Exporting is itself
-audited (kind `audit`), since it takes the log out of the station.
+the CSV export takes the same parameters.  Which records (`show`): people's records (what a
+person did, sign-ins, model changes, alarms), the station's own events, or everything.  The
+page shows people's records unless told otherwise: the station's events (hundreds an hour)
+would bury them, and are one click away; the CSV export and the API default to everything.
+Times are UTC throughout: the form's `datetime-local` inputs are read as UTC, and ISO 8601
+with a zone is accepted in the query string.  A filter that cannot be read is a 422 that
+says what to fix.  Exporting is itself audited (kind `audit`), since it takes the log out of
+the station.
 """
 
 from __future__ import annotations
@@ -19,6 +23,7 @@ from urllib.parse import urlencode
 
 from fastapi import APIRouter, Depends, HTTPException, Query, Request
 from fastapi.responses import Response, StreamingResponse
+from sqlalchemy import Select, and_, or_
 from sqlalchemy.orm import Session
 
 from app.auth import Permission
@@ -26,6 +31,7 @@ from app.store import audit
 from app.store.audit import AuditEntry, AuditFilter
 from app.store.tables import AuditRecord
 from app.web.deps import Caller, page_context, require, server
+from planner.wording import Wording
 
 router = APIRouter(include_in_schema=False)
 
@@ -36,6 +42,28 @@ TIME_EXAMPLE = "2025-05-01T14:30 (UTC) or 2025-05-01T16:30:00+02:00"
 # kinds shown with the error mark (ISA-101: colour only for what is abnormal)
 ABNORMAL_KINDS = frozenset({"error", "forbidden", "unexpected"})
 SUMMARY_CHARS = 90
+# which records (`show`), as the page's switch names them; the page's default first
+SHOWN = {"people": "People's records", "station": "Station events", "all": "Everything"}
+SHOW_CHARS = 16
+
+
+@dataclass(frozen=True)
+class ShownFilter(AuditFilter):
+    """The store's filter narrowed to people's records or the station's events (`SHOWN`).
+
+    A person's record names its user; alarm changes count as people's records whoever made
+    them (an alarm is raised for a person), the station's events are the rest."""
+
+    show: str = "all"
+
+    def apply(self, query: Select[Any]) -> Select[Any]:
+        query = super().apply(query)
+        people = or_(AuditRecord.user != "", AuditRecord.kind == "alarm")
+        if self.show == "people":
+            return query.where(people)
+        if self.show == "station":
+            return query.where(and_(AuditRecord.user == "", AuditRecord.kind != "alarm"))
+        return query
 
 
 # -- the filter ----------------------------------------------------------------------------------
@@ -45,7 +73,7 @@ SUMMARY_CHARS = 90
 class Criteria:
     """A filter as the store reads it (`where`) and as it was given (`given`, for links)."""
 
-    where: AuditFilter
+    where: ShownFilter
     given: dict[str, str]
 
     def query(self, **extra: object) -> str:
@@ -120,6 +148,7 @@ LIMITS = {
     "resource": RESOURCE_CHARS,
     "station": STATION_CHARS,
     "text": TEXT_CHARS,
+    "show": SHOW_CHARS,
 }
 
 
@@ -131,8 +160,10 @@ def criteria(
     resource: str = "",
     station: str = "",
     text: str = "",
+    show: str = "",
 ) -> Criteria:
-    """The filter from query parameters, or a 422 that says which one to fix and how."""
+    """The filter from query parameters, or a 422 that says which one to fix and how; no
+    `show` means everything."""
     given = {
         "since": since.strip(),
         "until": until.strip(),
@@ -141,16 +172,20 @@ def criteria(
         "resource": resource.strip(),
         "station": station.strip(),
         "text": text.strip(),
+        "show": show.strip(),
     }
     for name, value in given.items():
         if len(value) > LIMITS[name]:
             raise HTTPException(422, f"{name}: at most {LIMITS[name]} characters, not {len(value)}")
+    if given["show"] and given["show"] not in SHOWN:
+        shown = given["show"]
+        raise HTTPException(422, f"show: '{shown}' is not one of {', '.join(SHOWN)}")
     start, end = parse_time("since", given["since"]), parse_time("until", given["until"])
     if start is not None and end is not None and start > end:
         raise HTTPException(
             422, f"since ({iso(start)}) is after until ({iso(end)}); swap them or widen the range"
         )
-    where = AuditFilter(
+    where = ShownFilter(
         since=start,
         until=end,
         user=given["user"],
@@ -158,6 +193,7 @@ def criteria(
         resource=given["resource"],
         station=given["station"],
         text=given["text"],
+        show=given["show"] or "all",
     )
     return Criteria(where, {k: v for k, v in given.items() if v})
 
@@ -202,10 +238,18 @@ def filter_dependency(
         str, Query(max_length=STATION_CHARS, description="exactly this station")
     ] = "",
     text: Annotated[str, Query(max_length=TEXT_CHARS, description="contained in the subject")] = "",
+    show: Annotated[
+        str,
+        Query(
+            max_length=SHOW_CHARS,
+            description="people (their actions, sign-ins, model changes, alarms), station "
+            "(the station's own events) or all (the default)",
+        ),
+    ] = "",
 ) -> Criteria:
     """The filter's query parameters, for /audit.csv and /api/audit (the page reads them
     itself, so that a bad filter comes back in the form)."""
-    return criteria(since, until, user, kind, resource, station, text)
+    return criteria(since, until, user, kind, resource, station, text, show)
 
 
 # -- rows as the page shows them -----------------------------------------------------------------
@@ -220,9 +264,20 @@ class Row:
     kind: str
     subject: str
     resource: str
-    summary: str  # the detail on one line, shortened
+    summary: str  # the detail on one line, shortened, names in words
     pretty: str  # the detail, indented ("" when there is none)
     abnormal: bool
+    subject_words: str = ""  # the subject for people ("operation: robot 2 takes the nutrunner")
+    resource_words: str = ""
+
+
+def subject_words(words: Wording, subject: str) -> str:
+    """A record's subject in words: "operation:get_nr_r2" → "operation: robot 2 takes the
+    nutrunner"; the page keeps the raw subject in the opened detail, as the CSV has it."""
+    kind, colon, name = subject.partition(":")
+    if not colon or not name or " " in name:  # a sentence ("E6: r2 stops answering")
+        return words.text(subject)
+    return f"{kind}: {words.name(name)}"
 
 
 def detail_of(record: AuditRecord) -> dict[str, Any]:
@@ -234,10 +289,10 @@ def detail_of(record: AuditRecord) -> dict[str, Any]:
     return detail if isinstance(detail, dict) else {"value": detail}
 
 
-def row_of(record: AuditRecord) -> Row:
+def row_of(record: AuditRecord, words: Wording) -> Row:
     detail = detail_of(record)
     parts = [f"{key}: {_compact(value)}" for key, value in detail.items()]
-    summary = ", ".join(parts)
+    summary = words.text(", ".join(parts))
     if len(summary) > SUMMARY_CHARS:
         summary = summary[: SUMMARY_CHARS - 1] + "…"
     pretty = json.dumps(detail, indent=2, ensure_ascii=False, default=str) if detail else ""
@@ -252,6 +307,8 @@ def row_of(record: AuditRecord) -> Row:
         summary,
         pretty,
         record.kind in ABNORMAL_KINDS,
+        subject_words(words, record.subject),
+        words.resource(record.resource) if record.resource else "",
     )
 
 
@@ -289,10 +346,12 @@ def audit_page(
     resource: str = "",
     station: str = "",
     text: str = "",
+    show: str = "people",
     page: str = "1",
 ) -> Response:
-    """The log page; a filter it cannot read comes back as the page itself, with the
-    message and the form as given, so the auditor can correct it (422)."""
+    """The log page, people's records unless `show` says otherwise; a filter it cannot read
+    comes back as the page itself, with the message and the form as given, so the auditor
+    can correct it (422)."""
     srv = server(request)
     raw = {
         "since": since,
@@ -302,6 +361,7 @@ def audit_page(
         "resource": resource,
         "station": station,
         "text": text,
+        "show": show.strip() or "people",
     }
     try:
         chosen = criteria(**raw)
@@ -311,12 +371,18 @@ def audit_page(
         with srv.store.sessions() as session:
             choices = _choices(session, form)
         context = page_context(
-            request, caller, "audit", error=str(exc.detail), form=form, choices=choices
+            request,
+            caller,
+            "audit",
+            error=str(exc.detail),
+            form=form,
+            choices=choices,
+            shown=_switch(criteria(show="people"), "people"),
         )
         return _page(request, context, exc.status_code)
     with srv.store.sessions() as session:
         found = audit.page_of(session, chosen.where, number)
-        rows = [row_of(r) for r in found.records]
+        rows = [row_of(r, srv.live.view.model.words) for r in found.records]
         choices = _choices(session, chosen.given)
     where = chosen.where
     context = page_context(
@@ -330,7 +396,8 @@ def audit_page(
         pages=found.pages,
         page_url=lambda n: "/audit" + chosen.query(page=n),
         csv_url="/audit.csv" + chosen.query(),
-        filtered=bool(chosen.given),
+        filtered=bool(chosen.given.keys() - {"show"}),
+        shown=_switch(chosen, where.show),
         form={
             "since": time_input(where.since),
             "until": time_input(where.until),
@@ -339,10 +406,29 @@ def audit_page(
             "resource": where.resource,
             "station": where.station,
             "text": where.text,
+            "show": where.show,
         },
         choices=choices,
     )
     return _page(request, context, 200)
+
+
+@dataclass(frozen=True)
+class Switch:
+    """One choice of which records the page shows: its words, link, and whether it is on."""
+
+    show: str
+    words: str
+    url: str
+    current: bool
+
+
+def _switch(chosen: Criteria, current: str) -> list[Switch]:
+    """The page's choices of records, each keeping the rest of the filter (page 1)."""
+    return [
+        Switch(key, words, "/audit" + chosen.query(show=key), key == current)
+        for key, words in SHOWN.items()
+    ]
 
 
 def _page(request: Request, context: dict[str, Any], status: int) -> Response:

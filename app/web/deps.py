@@ -173,18 +173,55 @@ def require(*permissions: Permission) -> Callable[[Request], Awaitable[Caller]]:
                 raise HTTPException(401, "sign in first: POST /api/token, then send a bearer token")
             raise LoginRequired()
         if not any(allowed(caller.role, p) for p in permissions):
-            needs = " or ".join(f"'{p}'" for p in permissions)
-            raise HTTPException(403, f"a {caller.role} may not do this (needs {needs})")
+            raise HTTPException(403, refusal(request, caller.role, permissions))
         await check_csrf(request, caller)
         return caller
 
     return dependency
 
 
+def refusal(request: Request, role: str, permissions: tuple[Permission, ...]) -> str:
+    """Why a role is refused, in plain words for a page ("Your role (auditor) cannot see
+    this page."); a line system's API client is also told the permissions it lacks."""
+    if is_api(request):
+        needs = " or ".join(f"'{p}'" for p in permissions)
+        return f"your role ({role}) cannot do this (it needs the {needs} permission)"
+    if request.method in SAFE_METHODS:
+        return f"Your role ({role}) cannot see this page."
+    return f"Your role ({role}) cannot do this."
+
+
+@dataclass(frozen=True, slots=True)
+class Place:
+    """A page a person may open, for links on the pages that refuse them."""
+
+    href: str
+    words: str
+
+
+# every page of the HMI and what it needs to be opened, in the top bar's order
+PLACES = (
+    (Place("/", "Tasks"), Permission.TASKS),
+    (Place("/alarms", "Alarms"), Permission.ALARMS),
+    (Place("/station", "Station"), Permission.STATION),
+    (Place("/model", "Model"), Permission.MODEL),
+    (Place("/audit", "Audit log"), Permission.AUDIT),
+    (Place("/users", "Users"), Permission.USERS),
+)
+
+
+def places_for(caller: Caller | None) -> list[Place]:
+    """The pages `caller` may open (only the sign-in page for nobody)."""
+    if caller is None:
+        return [Place("/login", "Log in")]
+    return [place for place, needs in PLACES if allowed(caller.role, needs)]
+
+
 def alarm_badge(view: StationView) -> tuple[int, str]:
-    """Alarms waiting for a person (unacknowledged, active or returned), and the highest
-    priority among them ("" if none)."""
-    waiting = [a for a in view.alarms if "unacknowledged" in str(a.state)]
+    """Alarms waiting for a person's acknowledgement (active or returned; shelved ones are
+    not shown), and the highest priority among them ("" if none).  The page, its alarm
+    list's answers and the SSE `alarm` event all count from the same committed view."""
+    waiting = [a for a in view.alarms if a.waiting]
     if not waiting:
         return 0, ""
     return len(waiting), str(min(waiting, key=lambda a: a.priority.rank).priority)
@@ -201,12 +238,13 @@ def page_context(
         "request": request,
         "user": caller,
         "csrf_token": csrf_token(request),
-        "station_name": srv.live.name,
+        "station_name": view.model.words.station(),  # words for people, not its model name
         "alarm_count": alarm_count,
         "alarm_priority": alarm_priority,
         "simulated": view.simulated,
         "on_emulators": srv.live.on_emulators,
         "page": page,
         "view": view,
+        "places_for": places_for,
         **extra,
     }

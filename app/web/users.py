@@ -1,37 +1,104 @@
-"""User administration (admin only): list users, add one with a first-login password,
-disable or enable one.  Every change is audited."""
+"""User administration (admin only): list users with their last sign-in, add one with a
+first-login password, disable or enable one, reset a password, change a role.  Every change
+is audited (`app.store.audit.write`, in the change's own transaction; user rows are sealed as
+they are flushed, app.store.seals), and a reset or a new role ends the user's sessions: they
+sign in again, to choose a password or under the new role's permissions."""
 
 from __future__ import annotations
 
+import json
 import re
+from collections.abc import Callable
+from dataclasses import dataclass
+from datetime import UTC, datetime
 from typing import Annotated
 
 from fastapi import APIRouter, Depends, Form, HTTPException, Request
-from fastapi.responses import Response
-from sqlalchemy import select
+from fastapi.responses import RedirectResponse, Response
+from sqlalchemy import func, select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from app import user_sessions
-from app.auth import ROLES, Permission, add_user, password_problem, user_named
+from app.auth import (
+    ROLES,
+    Permission,
+    Role,
+    add_user,
+    hash_password,
+    password_problem,
+    user_named,
+)
 from app.store import audit
 from app.store.audit import AuditEntry
 from app.store.seals import TamperedUser
-from app.store.tables import User
+from app.store.tables import AuditRecord, User
 from app.web.deps import Caller, page_context, require, server
+from app.web.server import Server
 
 router = APIRouter(include_in_schema=False)
 NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_.-]{0,63}$")
 
 
+@dataclass(frozen=True, slots=True)
+class UserRow:
+    """A user as the page shows them, with their last browser sign-in (from the audit log)."""
+
+    name: str
+    role: str
+    must_change: bool
+    disabled: bool
+    signed_in: str  # "2025-05-01 14:03 UTC", or "" if never
+    address: str
+
+
+def user_rows(session: Session) -> list[UserRow]:
+    """Every user and their last sign-in, in one query: the newest "signed in" record per
+    user name (the login records' index, `ix_audit_kind`, keeps it quick on a long log)."""
+    newest = (
+        select(AuditRecord.user.label("name"), func.max(AuditRecord.id).label("id"))
+        .where(AuditRecord.kind == "login", AuditRecord.subject == "signed in")
+        .group_by(AuditRecord.user)
+        .subquery()
+    )
+    query = (
+        select(User, AuditRecord.time, AuditRecord.detail)
+        .outerjoin(newest, newest.c.name == User.name)
+        .outerjoin(AuditRecord, AuditRecord.id == newest.c.id)
+        .order_by(User.name)
+    )
+    rows = []
+    for user, time, detail in session.execute(query):
+        rows.append(
+            UserRow(
+                user.name,
+                user.role,
+                user.must_change_password,
+                user.disabled,
+                "" if time is None else _when(time),
+                _address(detail),
+            )
+        )
+    return rows
+
+
+def _when(time: float) -> str:
+    """As the audit page shows times: UTC, to the minute."""
+    return datetime.fromtimestamp(time, UTC).strftime("%Y-%m-%d %H:%M UTC")
+
+
+def _address(detail: str | None) -> str:
+    try:
+        found = json.loads(detail or "{}").get("address", "")
+    except (ValueError, AttributeError):  # not JSON, or not an object: nothing to show
+        return ""
+    return found if isinstance(found, str) else ""
+
+
 def _page(request: Request, caller: Caller, status: int = 200, **extra: object) -> Response:
     srv = server(request)
     with srv.store.sessions() as session:
-        users = [
-            {"name": u.name, "role": u.role, "must_change": u.must_change_password,
-             "disabled": u.disabled}
-            for u in session.scalars(select(User).order_by(User.name))
-        ]  # fmt: skip
+        users = user_rows(session)
     context = page_context(request, caller, "users", users=users, roles=ROLES, **extra)
     response: Response = srv.templates.TemplateResponse(
         request, "users.html", context, status_code=status
@@ -113,3 +180,94 @@ def disable(
     except TamperedUser as exc:
         raise HTTPException(409, str(exc)) from None
     return _page(request, caller, message=f"{name} is {subject}")
+
+
+@router.post("/users/password")
+def reset_password(
+    request: Request,
+    caller: Annotated[Caller, Depends(require(Permission.USERS))],
+    name: Annotated[str, Form(max_length=64)],
+    password: Annotated[str, Form(max_length=200)],
+) -> Response:
+    """A new first-login password for someone who forgot theirs: they must change it at their
+    next sign-in, and whatever they were signed in with ends now."""
+    srv = server(request)
+    if name == caller.name:
+        raise HTTPException(409, "change your own password with Change password (/password)")
+    problem = password_problem(name, password)
+    if problem:
+        return _page(request, caller, 422, error=problem)
+    now = srv.live.wall()
+    detail: dict[str, object] = {"name": name}
+
+    def reset(session: Session) -> None:
+        user = _named(session, name)
+        user.password_hash = hash_password(password)
+        user.must_change_password = True
+        detail["sessions_ended"] = user_sessions.revoke_all(session, user.id, "password reset", now)
+
+    _write(srv, AuditEntry("user", "password reset", caller.name, "", detail), now, reset)
+    return _page(
+        request, caller, message=f"{name} has a new first-login password; they choose their own"
+    )
+
+
+@router.post("/users/role")
+def change_role(
+    request: Request,
+    caller: Annotated[Caller, Depends(require(Permission.USERS))],
+    name: Annotated[str, Form(max_length=64)],
+    role: Annotated[str, Form(max_length=16)],
+) -> Response:
+    """Give a user another role; their sessions end, so the new role's permissions hold from
+    their next sign-in.  The last enabled admin may not step down (nobody could manage the
+    users any more); an admin who does step down is signed out with the rest."""
+    srv = server(request)
+    if role not in ROLES:
+        return _page(
+            request, caller, 422, error=f"unknown role '{role}'; use one of {', '.join(ROLES)}"
+        )
+    now = srv.live.wall()
+    detail: dict[str, object] = {"name": name, "role": role}
+
+    def change(session: Session) -> None:
+        user = _named(session, name)
+        if user.role == role:
+            raise HTTPException(409, f"{name} is already {_article(role)} {role}")
+        if user.role == Role.ADMIN and not user.disabled and _admins(session) <= 1:
+            raise HTTPException(409, f"{name} is the last admin: make another user admin first")
+        detail["previous"] = user.role
+        user.role = role
+        detail["sessions_ended"] = user_sessions.revoke_all(session, user.id, "role changed", now)
+
+    _write(srv, AuditEntry("user", "role changed", caller.name, "", detail), now, change)
+    if name == caller.name:  # their own session ended with the others
+        request.session.clear()
+        return RedirectResponse("/login", status_code=303)
+    return _page(request, caller, message=f"{name} is now {_article(role)} {role}; signed out")
+
+
+def _named(session: Session, name: str) -> User:
+    user = user_named(session, name)
+    if user is None:
+        raise HTTPException(404, f"there is no user '{name}'")
+    return user
+
+
+def _admins(session: Session) -> int:
+    """Enabled admins (a disabled one cannot sign in to manage anyone)."""
+    query = select(func.count()).select_from(User)
+    found = session.scalar(query.where(User.role == Role.ADMIN, User.disabled.is_(False)))
+    return int(found or 0)
+
+
+def _article(role: str) -> str:
+    return "an" if role[:1] in "aeiou" else "a"
+
+
+def _write(srv: Server, entry: AuditEntry, now: float, change: Callable[[Session], None]) -> None:
+    """The change and its audit record, in one transaction (a tampered row is refused)."""
+    try:
+        audit.write(srv.store, srv.live.name, [entry], now, also=change)
+    except TamperedUser as exc:
+        raise HTTPException(409, str(exc)) from None

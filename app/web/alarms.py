@@ -1,0 +1,203 @@
+"""The alarms page (ISA-18.2), watch first: one line per alarm with its priority, words and
+raise time, its details and forms opened on a tap; acknowledge one, or all those shown with
+one note; shelve one for a while (its end shown), unshelve it.
+
+Every change goes through the live station's request queue (`app.live_station`), audited
+per alarm in the round that makes it.  A form's answer to htmx is the refreshed list with
+the top bar's badge (`_alarm_badge.html`, out of band), so the count never lags the list.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass
+from datetime import datetime
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Depends, Form, HTTPException, Request
+from fastapi.responses import RedirectResponse, Response
+
+from app.alarms import Alarm, AlarmState
+from app.auth import Permission, allowed
+from app.web.actions import answer
+from app.web.deps import Caller, current_caller, page_context, require, server
+
+router = APIRouter(include_in_schema=False)
+KEY_LENGTH = 200  # an alarm's key, as the store keeps it (AlarmRecord.key)
+MOST_KEYS = 1000  # alarms one "acknowledge all" may name
+
+
+@dataclass(frozen=True, slots=True)
+class Moment:
+    """A time as a person reads it: the time of day, and how long ago (or until)."""
+
+    at: float  # seconds since the epoch (the page's script keeps `ago` true from it)
+    iso: str  # for <time datetime>
+    clock: str  # "14:03", or "3 May 14:03" when not today
+    ago: str  # "5 min ago", "in 25 min"
+
+
+@dataclass(frozen=True, slots=True)
+class AlarmRow:
+    """One alarm as the page shows it."""
+
+    key: str
+    priority: str
+    message: str
+    state: str
+    active: bool
+    waiting: bool  # waits for a person's acknowledgement
+    shelved: bool
+    raised: Moment
+    returned: Moment | None
+    acked_by: str
+    acked: Moment | None
+    note: str
+    shelved_by: str
+    shelved_until: Moment | None
+
+
+def relative(seconds: float) -> str:
+    """How long ago (positive) or until (negative), in whole minutes, hours or days
+    (static/js/alarms.js says the same words)."""
+    if 0 <= seconds < 45:
+        return "just now"
+    minutes = max(1, int((abs(seconds) + 30) // 60))
+    if minutes < 60:
+        span = f"{minutes} min"
+    elif minutes < 24 * 60:
+        span = f"{minutes // 60} h"
+    else:
+        span = f"{minutes // (24 * 60)} d"
+    return f"{span} ago" if seconds >= 0 else f"in {span}"
+
+
+def moment(at: float, now: float) -> Moment:
+    """`at` in the station's local time (its clock is the plant's)."""
+    local, today = datetime.fromtimestamp(at).astimezone(), datetime.fromtimestamp(now).astimezone()
+    clock = local.strftime("%H:%M")
+    if local.date() != today.date():
+        clock = f"{local.day} {local.strftime('%b')} {clock}"
+    return Moment(at, local.isoformat(timespec="seconds"), clock, relative(now - at))
+
+
+def rows(alarms: Iterable[Alarm], now: float) -> list[AlarmRow]:
+    """The rows in the book's order (unacknowledged first, then priority, then newest)."""
+
+    def maybe(at: float | None) -> Moment | None:
+        return None if at is None else moment(at, now)
+
+    return [
+        AlarmRow(
+            key=a.key,
+            priority=str(a.priority),
+            message=a.message,
+            state=str(a.state),
+            active=a.active,
+            waiting=a.waiting,
+            shelved=a.state is AlarmState.SHELVED,
+            raised=moment(a.raised_at, now),
+            returned=maybe(a.returned_at),
+            acked_by=a.acked_by or "",
+            acked=maybe(a.acked_at),
+            note=a.note,
+            shelved_by=a.shelved_by or "",
+            shelved_until=maybe(a.shelved_until),
+        )
+        for a in alarms
+        if a.state is not AlarmState.NORMAL
+    ]
+
+
+def render(
+    request: Request,
+    template: str,
+    caller: Caller | None,
+    fragment: bool = False,
+    acted: bool = False,
+) -> Response:
+    """The page or its list; a fragment carries the badge, and after a form that succeeded
+    an empty flash (htmx swaps both out of band: an earlier refusal's message goes)."""
+    srv = server(request)
+    now = srv.live.wall()
+    extra: dict[str, Any] = {
+        "alarms": rows(srv.live.view.alarms, now),
+        "now": round(now, 3),
+        "may_act": caller is not None and allowed(caller.role, Permission.ACKNOWLEDGE),
+        "badge_oob": fragment,
+        "flash_clear": acted,
+    }
+    response: Response = srv.templates.TemplateResponse(
+        request, template, page_context(request, caller, "alarms", **extra)
+    )
+    return response
+
+
+@router.get("/alarms")
+def alarms(request: Request) -> Response:
+    caller = current_caller(request)
+    if caller is None:
+        return RedirectResponse("/login?next=/alarms", status_code=303)
+    return render(request, "alarms.html", caller)
+
+
+@router.get("/fragments/alarms")
+async def alarms_fragment(
+    request: Request, caller: Annotated[Caller, Depends(require(Permission.ALARMS))]
+) -> Response:
+    return render(request, "_alarms.html", caller, fragment=True)
+
+
+@router.post("/alarms/acknowledge")
+async def acknowledge(
+    request: Request,
+    caller: Annotated[Caller, Depends(require(Permission.ACKNOWLEDGE))],
+    key: Annotated[str, Form(max_length=KEY_LENGTH)],
+    note: Annotated[str, Form(max_length=500)] = "",
+) -> Response:
+    await answer(server(request).live.acknowledge(key, caller.name, note.strip()))
+    return _back(request, caller)
+
+
+@router.post("/alarms/acknowledge-all")
+async def acknowledge_all(
+    request: Request,
+    caller: Annotated[Caller, Depends(require(Permission.ACKNOWLEDGE))],
+    keys: Annotated[list[str], Form(max_length=MOST_KEYS)],
+    note: Annotated[str, Form(max_length=500)] = "",
+) -> Response:
+    """The alarms the page showed as waiting (its hidden `keys`), with one note: one
+    that arrived after the page was drawn is not acknowledged unseen."""
+    if any(len(key) > KEY_LENGTH for key in keys):
+        raise HTTPException(422, f"keys: an alarm's key has at most {KEY_LENGTH} characters")
+    await answer(server(request).live.acknowledge_all(keys, caller.name, note.strip()))
+    return _back(request, caller)
+
+
+@router.post("/alarms/shelve")
+async def shelve(
+    request: Request,
+    caller: Annotated[Caller, Depends(require(Permission.ACKNOWLEDGE))],
+    key: Annotated[str, Form(max_length=KEY_LENGTH)],
+    minutes: Annotated[float, Form(gt=0, le=480)],
+    note: Annotated[str, Form(max_length=500)] = "",
+) -> Response:
+    await answer(server(request).live.shelve(key, caller.name, minutes, note.strip()))
+    return _back(request, caller)
+
+
+@router.post("/alarms/unshelve")
+async def unshelve(
+    request: Request,
+    caller: Annotated[Caller, Depends(require(Permission.ACKNOWLEDGE))],
+    key: Annotated[str, Form(max_length=KEY_LENGTH)],
+) -> Response:
+    await answer(server(request).live.unshelve(key, caller.name))
+    return _back(request, caller)
+
+
+def _back(request: Request, caller: Caller) -> Response:
+    """After a form: htmx gets the refreshed list (and badge), a plain browser a redirect."""
+    if request.headers.get("hx-request"):
+        return render(request, "_alarms.html", caller, fragment=True, acted=True)
+    return RedirectResponse("/alarms", status_code=303)
