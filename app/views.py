@@ -5,14 +5,15 @@ Pure functions of a `StationView`; no control logic (the runner decides, this on
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass
 from enum import StrEnum
 
 from app.station_view import StationView
 from planner.model import TransitionKind
-from planner.runner import OperationState, TransitionPlan
+from planner.runner import Event, EventKind, IntentionState, OperationState, TransitionPlan
 from planner.watch import IDLE
+from planner.wording import Wording
+from planner.wording import sentence as sentence
 
 
 class CardKind(StrEnum):
@@ -37,33 +38,105 @@ class TaskCard:
     step: int = 0  # approval: the recovery plan's step; instruction: k of `of`
     of: int = 0
     rejectable: bool = False  # a recovery instruction: the person may say they cannot do it
+    abnormal: bool = False  # the station is in a forbidden state (ISA-101: coloured)
+
+    @property
+    def label(self) -> str:
+        """The card's kind in words, read before anything else on the card."""
+        if self.kind is CardKind.APPROVAL:
+            return "Abnormal \u2014 approve?"
+        if self.abnormal:
+            return "Abnormal \u2014 your step"
+        if self.kind is CardKind.INSTRUCTION:
+            return f"Maintenance \u00b7 step {self.step} of {self.of}" if self.of else "Maintenance"
+        return "Your task"
+
+    @property
+    def page_title(self) -> str:
+        """What the browser tab says while this card waits ("Approve: …", "Do: …")."""
+        verb = "Approve" if self.kind is CardKind.APPROVAL else "Do"
+        return f"{verb}: {self.title}"
 
 
 def task_cards(view: StationView) -> list[TaskCard]:
-    """Approvals first (nothing runs without them), then instructions, then the watch card."""
+    """The most urgent first: approvals of forbidden states (nothing runs without them), then
+    maintenance and recovery steps, then the routine watch cards.  The operator's page shows
+    the first one only, with the count of the others."""
     return [*_approvals(view), *_instructions(view), *_command_cards(view)]
 
 
-def sentence(text: str) -> str:
-    """Plain words for a person: capitalised, without the model's references to the papers
-    and experiments ("(seed 003 PlaceBolt_i)", "(E6, E7)")."""
-    text = _REFERENCE.sub("", text).strip()
-    return text[:1].upper() + text[1:] if text else text
+class Activity(StrEnum):
+    """What the station is doing when it has nothing for the operator."""
+
+    IDLE = "idle"  # nothing started
+    BUSY = "busy"  # an engine is being assembled
+    COMPLETE = "complete"  # every started intention finished
 
 
-_REFERENCE = re.compile(r"\s*\((?:seed \d+[^)]*|E\d[^)]*)\)")
+@dataclass(frozen=True)
+class StationActivity:
+    kind: Activity
+    title: str
+    text: str
+
+
+def station_activity(view: StationView) -> StationActivity:
+    """The words of the "nothing for you" card: idle, assembling (and what), or complete."""
+    words = view.model.words
+    intentions = view.state.intentions
+    running = _running(view)
+    if running:
+        doing = _executing(view)
+        what = f" ({'; '.join(doing)})" if doing else ""
+        title = "Nothing for you"
+        return StationActivity(
+            Activity.BUSY, title, f"The station is working on: {words.intention(running[0])}{what}."
+        )
+    if any(s is IntentionState.FINISHED for s in intentions.values()):
+        return StationActivity(
+            Activity.COMPLETE, "Engine complete", "Everything started is finished."
+        )
+    mode = " It is in restart mode." if view.state.restart_mode else ""
+    return StationActivity(
+        Activity.IDLE, "Nothing to do", f"The station is idle: nothing is started.{mode}"
+    )
+
+
+def _running(view: StationView) -> list[str]:
+    """The intentions being worked on: executing, or in error waiting for a way out."""
+    working = (IntentionState.EXECUTING, IntentionState.ERROR)
+    return [n for n, s in view.state.intentions.items() if s in working]
+
+
+def _cancelled(view: StationView) -> bool:
+    """Nothing is being worked on, and the last intention to stop was stopped by a person
+    (back to initial from executing or error): a watch card left over is not a task."""
+    if _running(view):
+        return False
+    for e in reversed(view.events):
+        if e.kind is EventKind.INTENTION:
+            return e.detail.get("after") == IntentionState.INITIAL and e.detail.get("before") in (
+                IntentionState.EXECUTING,
+                IntentionState.ERROR,
+            )
+    return False
 
 
 def _executing(view: StationView) -> list[str]:
-    ops = view.model.station.operations
+    words = view.model.words
     executing = set(view.state.operations_in(OperationState.EXECUTING))
-    return [o.description or o.name for o in ops if o.name in executing]
+    ops = view.model.station.operations
+    return [words.operation(o.name) for o in ops if o.name in executing]
 
 
 def _command_cards(view: StationView) -> list[TaskCard]:
     """The card each person's watch shows (planner.watch), until the person taps Done."""
-    cards = []
+    cards: list[TaskCard] = []
     values = view.state.values
+    words = view.model.words
+    if _cancelled(view):  # the card's intention was cancelled by the engineer: nothing to do
+        return cards
+    running = _running(view)
     for person, watch in view.model.station.watches:
         card = values.get(watch.card)
         if card in (None, IDLE) or values.get(watch.done) != IDLE:
@@ -72,14 +145,18 @@ def _command_cards(view: StationView) -> list[TaskCard]:
             executing = ability.predicates.get("executing")
             mine = ability.resource == person.name
             if mine and executing and view.runner.holds(executing, values):
-                title = sentence(ability.description or ability.name.replace("_", " "))
+                title = sentence(words.ability(ability.qualified))
                 break
         else:
-            title = sentence(str(card).replace("_", " "))
-        why = sentence("; ".join(_executing(view)) or "the operation plan asks for it")
+            title = sentence(words.text(str(card).replace("_", " ")))
+        why = (
+            f"The station needs it for: {words.intention(running[0])}."
+            if running
+            else "The station needs it next."
+        )
         waited = _waited_for_a_person(view)
         if waited:
-            why += f". The station has been waiting for you for {waited}."
+            why += f" The station has been waiting for you for {waited}."
         cards.append(TaskCard(CardKind.COMMAND, f"card-{card}", title, why, card=str(card)))
     return cards
 
@@ -100,29 +177,37 @@ def _waited_for_a_person(view: StationView) -> str:
 def _instructions(view: StationView) -> list[TaskCard]:
     s = view.state
     cards = []
+    model = view.model.station.model
     plans: list[tuple[TransitionPlan | None, str]] = [(s.maintenance, s.maintenance_for)]
     for plan, operation in plans:
         if plan is None:
             continue
-        names = [b.transition for b in plan.blocks]
+        # numbered among a person's steps of the plan (the robots' steps between are not
+        # the person's to count): 1 of 2, 2 of 2 -- never "1 of 7" then "3 of 7"
+        people = [
+            k
+            for k, b in enumerate(plan.blocks)
+            if model.transition(b.transition).kind is TransitionKind.MAINTENANCE
+        ]
         failed = _failure(view, operation)
         for k in sorted(plan.asked - plan.taken):
             name = plan.blocks[k].transition
+            number = people.index(k) + 1 if k in people else 0
             cards.append(
                 TaskCard(
                     CardKind.INSTRUCTION,
                     f"maintenance-{name}",
                     sentence(describe(view, name)),
                     failed,
-                    detail=f"step {names.index(name) + 1} of {len(names)}",
+                    detail=f"step {number} of {len(people)}" if number else "",
                     transition=name,
-                    step=names.index(name) + 1,
-                    of=len(names),
+                    step=number,
+                    of=len(people) if number else 0,
                 )
             )
     plan = s.recovery
     if plan is not None:
-        violated = ", ".join(sorted(s.relaxed)) or "a specification"
+        violated = _violated(view)
         for k in sorted(plan.approved - plan.taken):
             name = plan.blocks[k].transition
             if view.model.station.model.transition(name).kind is TransitionKind.MAINTENANCE:
@@ -131,11 +216,12 @@ def _instructions(view: StationView) -> list[TaskCard]:
                         CardKind.INSTRUCTION,
                         f"recovery-{name}",
                         sentence(describe(view, name)),
-                        f"The station is in a forbidden state ({violated}); this step gets it "
-                        "out. If you cannot do it, say so: the station looks for another way.",
+                        f"Not allowed now: {violated}. Your step puts it right; if you cannot "
+                        "do it, say so and the station looks for another way.",
                         transition=name,
                         step=k,
                         rejectable=True,
+                        abnormal=True,
                     )
                 )
     return cards
@@ -145,7 +231,7 @@ def _approvals(view: StationView) -> list[TaskCard]:
     plan = view.state.recovery
     if plan is None:
         return []
-    violated = ", ".join(sorted(view.state.relaxed)) or "a specification"
+    violated = _violated(view)
     cards = []
     for k in sorted(plan.asked - plan.approved):
         name = plan.blocks[k].transition
@@ -153,27 +239,74 @@ def _approvals(view: StationView) -> list[TaskCard]:
             TaskCard(
                 CardKind.APPROVAL,
                 f"approval-{k}",
-                sentence(describe(view, name)),
-                f"The station is in a forbidden state ({violated}). The station will do this "
-                "step to get out of it, once you approve.",
-                detail=f"recovery step {k + 1} of {len(plan.blocks)}: {name}",
+                sentence(view.model.words.step(name)),
+                f"Not allowed now: {violated}. The station will do this step to put it "
+                "right, once you approve.",
+                detail=f"recovery step {k + 1} of {len(plan.blocks)}",
                 transition=name,
                 step=k,
+                abnormal=True,
             )
         )
     return cards
 
 
+def _violated(view: StationView) -> str:
+    """The specifications the state breaks, in words."""
+    words = view.model.words
+    names = sorted(view.state.relaxed)
+    return words.sentence(" and ".join(words.specification(n) for n in names) or "the rules")
+
+
 def describe(view: StationView, name: str) -> str:
-    t = view.model.station.model.transition(name)
-    return t.description or name
+    """A transition's words (what the step does)."""
+    return view.model.words.transition(name)
 
 
 def _failure(view: StationView, operation: str) -> str:
-    """What failed, in plain words: the operation in error and the reason it went there."""
+    """The cause first ("Robot 2 stopped answering."), then what it stopped."""
+    words = view.model.words
+    cause = first_cause(view)
     if not operation:
-        return "An error needs your hands"
-    description = view.model.station.operation(operation).description or operation
+        return cause or "Something went wrong that needs your hands."
+    stopped = f"It stopped: {words.operation(operation)}."
+    if cause:
+        return f"{cause} {stopped}"
     reason = view.state.operation_causes.get(operation, "")
-    text = f"Failed: {sentence(description)[:1].lower()}{sentence(description)[1:]}"
-    return f"{text} ({reason})" if reason else text
+    return f"{sentence(words.text(reason))}. {stopped}" if reason else stopped
+
+
+_CAUSES = (EventKind.UNAVAILABLE, EventKind.TIMEOUT, EventKind.UNEXPECTED)
+
+
+def first_cause(view: StationView) -> str:
+    """The first thing that went wrong since the station last started an intention, in
+    words ("Robot 2 stopped answering."); "" when nothing did.  The runner's own causes
+    (`operation_causes`) name a consequence ("its goal cannot be reached while ..."), the
+    events the origin."""
+    events = view.events
+    start = 0
+    for k in range(len(events) - 1, -1, -1):
+        e = events[k]
+        if e.kind is EventKind.INTENTION and e.detail.get("before") == IntentionState.INITIAL:
+            start = k
+            break
+    for e in events[start:]:
+        if e.kind in _CAUSES:
+            return cause_words(view.model.words, e)
+    return ""
+
+
+def cause_words(words: Wording, event: Event) -> str:
+    """One cause event as a sentence for a person."""
+    if event.kind is EventKind.UNAVAILABLE:
+        return sentence(f"{words.resource(event.subject)} stopped answering.")
+    if event.kind is EventKind.TIMEOUT:
+        return sentence(f"{words.step(event.subject)}: did not happen in time.")
+    if event.detail.get("why") == "a different effect":
+        return sentence(f"{words.step(event.subject)}: happened instead of what was expected.")
+    return sentence(f"Something changed that nothing explains: {words.names(_split(event))}.")
+
+
+def _split(event: Event) -> list[str]:
+    return [n.strip() for n in event.subject.split(",") if n.strip()]

@@ -127,7 +127,8 @@ def test_e2_operator_is_told_to_take_off_the_oil_filters_on_a_watch(
             state = served.live.view.state
             assert state.recovery is not None and not state.recovery.taken
             assert state.values["oil_filter1.state"] == "mounted"
-            assert "forbidden state" in card.inner_text()
+            assert "Not allowed now" in card.inner_text()  # abnormal, said in words
+            assert card.get_attribute("data-abnormal") == "true"
             assert card.get_by_role("button", name="I cannot do this").count() == 1
             screenshot(watch, "operator-watch-recovery.png")
             checked["recovery"] = True
@@ -156,11 +157,11 @@ def test_e6_operator_moves_r2_home_from_a_task_card_on_a_watch(
         assert_fits_the_watch(watch)
         if kind == "instruction":
             text = card.inner_text()
-            assert "Failed:" in text, text  # what failed, in plain words
+            assert text.count("Robot 2 stopped answering") == 1, text  # the cause first
             screenshot(watch, "operator-watch-e6-instruction.png")
 
     seen = operate(watch, finished(served, "tighten_bolts"), on_card)
-    assert ("instruction", "Move r2 home by hand") in seen, seen
+    assert ("instruction", "Move robot 2 home by hand") in seen, seen
     watch.goto(served.url + "/alarms")  # r2 was not answering: an alarm waits for a person
     assert watch.locator("li.alarm[data-key='resource:r2']").count() == 1
     assert_fits_the_watch(watch)

@@ -2,7 +2,10 @@
 
 Each change of the runner's view is announced as an event named after what changed
 (`station`, `alarm`) whose data is the view's version; pages re-fetch the fragments that
-listen for it.  A comment every 15 s keeps proxies from closing an idle stream.
+listen for it.  A comment every 15 s keeps proxies from closing an idle stream.  Every
+connection starts with the view's version and the alarm badge (`badge`, the data of
+`alarm`), so that a page that was offline shows the present at once (static/js/hmi.js
+re-fetches its live parts too).
 """
 
 from __future__ import annotations
@@ -33,6 +36,8 @@ async def events(request: Request) -> StreamingResponse:
         changes = live.subscribe()
         try:
             yield f"retry: 1000\nevent: station\ndata: {live.view.version}\n\n"
+            # the badge only (static/js/hmi.js); "alarm" would re-fetch every alarm list
+            yield f"event: badge\ndata: {_data(live, 'alarm')}\n\n"
             while not await request.is_disconnected():
                 try:
                     kind = await asyncio.wait_for(changes.get(), KEEPALIVE)

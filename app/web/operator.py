@@ -1,15 +1,22 @@
-"""The operator's pages: task cards (watch first), approvals, maintenance steps, alarms."""
+"""The operator's pages: task cards (watch first), approvals, maintenance steps (the alarms
+are app.web.alarms)."""
 
 from __future__ import annotations
 
+import hashlib
+from collections.abc import Awaitable
+from time import time
 from typing import Annotated, Any
 from urllib.parse import urlsplit
 
-from fastapi import APIRouter, Depends, Form, Request
+from fastapi import APIRouter, Depends, Form, HTTPException, Request
 from fastapi.responses import RedirectResponse, Response
 
 from app.auth import Permission, Role
-from app.views import task_cards
+from app.done_today import done_today
+from app.live_station import StationError
+from app.station_view import StationView
+from app.views import station_activity, task_cards
 from app.web.actions import answer, maintenance_step, perform
 from app.web.deps import Caller, current_caller, page_context, require, server
 from planner.runner import Approve, MaintenanceDone, Reject
@@ -27,17 +34,28 @@ def render(
     return response
 
 
-def back(request: Request, fragment: str) -> Response:
+def back(request: Request, fragment: str, stale: str = "") -> Response:
     """After a form: htmx gets the refreshed fragment, a plain browser a redirect."""
     if request.headers.get("hx-request"):
-        return render(
-            request,
-            fragment,
-            current_caller(request),
-            "tasks",
-            cards=task_cards(server(request).live.view),
-        )
+        shown = card_context(server(request).live.view)
+        return render(request, fragment, current_caller(request), "tasks", stale=stale, **shown)
     return RedirectResponse(same_origin_path(request), status_code=303)
+
+
+async def tap(request: Request, done: Awaitable[object], too_late: str) -> Response:
+    """Carry out a card's tap.  One that raced a change (the card was done on another device,
+    the step is no longer needed: a 409 or 404) gets, from htmx, the fresh card and
+    `too_late` in the card area rather than an error; a plain form keeps the error."""
+    try:
+        await done
+    except (StationError, HTTPException) as exc:
+        status = exc.status_code if isinstance(exc, HTTPException) else 409
+        if not request.headers.get("hx-request") or status not in (404, 409):
+            raise
+        if status == 404:
+            too_late = "This step is no longer needed."
+        return back(request, "_tasks.html", stale=too_late)
+    return back(request, "_tasks.html")
 
 
 def same_origin_path(request: Request) -> str:
@@ -66,18 +84,28 @@ def tasks(request: Request) -> Response:
         return RedirectResponse("/login", status_code=303)
     if caller.role == Role.AUDITOR:
         return RedirectResponse("/audit", status_code=303)
-    return render(
-        request, "tasks.html", caller, "tasks", cards=task_cards(server(request).live.view)
-    )
+    return render(request, "tasks.html", caller, "tasks", **card_context(server(request).live.view))
 
 
 @router.get("/fragments/tasks")
 async def tasks_fragment(
     request: Request, caller: Annotated[Caller, Depends(require(Permission.TASKS))]
 ) -> Response:
-    return render(
-        request, "_tasks.html", caller, "tasks", cards=task_cards(server(request).live.view)
-    )
+    """The card, re-fetched when the cards change and, while there is none, (throttled) when
+    the station does, for what it is doing.  A page that already shows this very card and
+    activity (`seen`, the digest it got last; see app.web.engineer's `live_fragment`) is
+    answered 204, so a card does not flicker under a finger."""
+    shown = card_context(server(request).live.view)
+    if request.query_params.get("seen") == shown["digest"]:
+        return Response(status_code=204)
+    return render(request, "_tasks.html", caller, "tasks", **shown)
+
+
+def card_context(view: StationView) -> dict[str, Any]:
+    """What _tasks.html shows, and its digest."""
+    cards, activity = task_cards(view), station_activity(view)
+    digest = hashlib.blake2b(repr((cards, activity)).encode(), digest_size=8).hexdigest()
+    return {"cards": cards, "station_activity": station_activity, "digest": digest}
 
 
 @router.post("/tasks/done")
@@ -86,8 +114,8 @@ async def card_done(
     caller: Annotated[Caller, Depends(require(Permission.TASKS))],
     card: Annotated[str, Form(max_length=100)],
 ) -> Response:
-    await answer(server(request).live.confirm_card(caller.name, card))
-    return back(request, "_tasks.html")
+    done = answer(server(request).live.confirm_card(caller.name, card))
+    return await tap(request, done, "Already done on another device.")
 
 
 @router.post("/tasks/maintenance")
@@ -97,9 +125,12 @@ async def maintenance_done(
     transition: Annotated[str, Form(max_length=200)],
 ) -> Response:
     live = server(request).live
-    maintenance_step(live, transition)
-    await perform(live, MaintenanceDone(user=caller.name, transition=transition))
-    return back(request, "_tasks.html")
+
+    async def done() -> None:
+        maintenance_step(live, transition)
+        await perform(live, MaintenanceDone(user=caller.name, transition=transition))
+
+    return await tap(request, done(), "This step is no longer needed.")
 
 
 @router.post("/tasks/approve")
@@ -114,63 +145,20 @@ async def approve(
         if decision == "approve"
         else Reject(user=caller.name, step=step)
     )
-    await perform(server(request).live, action)
-    return back(request, "_tasks.html")
-
-
-@router.get("/alarms")
-def alarms(request: Request) -> Response:
-    caller = current_caller(request)
-    if caller is None:
-        return RedirectResponse("/login?next=/alarms", status_code=303)
-    return render(request, "alarms.html", caller, "alarms", alarms=server(request).live.view.alarms)
-
-
-@router.get("/fragments/alarms")
-async def alarms_fragment(
-    request: Request, caller: Annotated[Caller, Depends(require(Permission.ALARMS))]
-) -> Response:
-    return render(
-        request, "_alarms.html", caller, "alarms", alarms=server(request).live.view.alarms
+    return await tap(
+        request, perform(server(request).live, action), "Already decided on another device."
     )
 
 
-@router.post("/alarms/acknowledge")
-async def acknowledge(
-    request: Request,
-    caller: Annotated[Caller, Depends(require(Permission.ACKNOWLEDGE))],
-    key: Annotated[str, Form(max_length=200)],
-    note: Annotated[str, Form(max_length=500)] = "",
-) -> Response:
-    await answer(server(request).live.acknowledge(key, caller.name, note.strip()))
-    return _alarms_back(request, caller)
-
-
-@router.post("/alarms/shelve")
-async def shelve(
-    request: Request,
-    caller: Annotated[Caller, Depends(require(Permission.ACKNOWLEDGE))],
-    key: Annotated[str, Form(max_length=200)],
-    minutes: Annotated[float, Form(gt=0, le=480)],
-    note: Annotated[str, Form(max_length=500)] = "",
-) -> Response:
-    await answer(server(request).live.shelve(key, caller.name, minutes, note.strip()))
-    return _alarms_back(request, caller)
-
-
-@router.post("/alarms/unshelve")
-async def unshelve(
-    request: Request,
-    caller: Annotated[Caller, Depends(require(Permission.ACKNOWLEDGE))],
-    key: Annotated[str, Form(max_length=200)],
-) -> Response:
-    await answer(server(request).live.unshelve(key, caller.name))
-    return _alarms_back(request, caller)
-
-
-def _alarms_back(request: Request, caller: Caller) -> Response:
-    if request.headers.get("hx-request"):
-        return render(
-            request, "_alarms.html", caller, "alarms", alarms=server(request).live.view.alarms
-        )
-    return RedirectResponse("/alarms", status_code=303)
+@router.get("/today")
+def today(request: Request) -> Response:
+    """The operator's "done today" (app.done_today)."""
+    caller = current_caller(request)
+    if caller is None:
+        return RedirectResponse("/login?next=/today", status_code=303)
+    if caller.role == Role.AUDITOR:
+        return RedirectResponse("/audit", status_code=303)
+    srv = server(request)
+    model = srv.live.view.model
+    found = done_today(srv.store, srv.live.name, caller.name, model.station, model.words, time())
+    return render(request, "today.html", caller, "today", today=found)

@@ -6,7 +6,12 @@
 //   (htmx's own hx-confirm works as usual);
 // - forms with data-once send once (no double "Done");
 // - a live part with data-seen sends the digest of what it shows as `seen` (204 if unchanged);
-// - a form with data-reset-on-success is reset after its own request succeeded.
+// - a form with data-reset-on-success is reset after its own request succeeded;
+// - after the live connection dropped and came back, every live part (hx-trigger "sse:…")
+//   re-fetches what it shows; the server sends the badge (event "badge") on every connect;
+// - the operator's card (#tasks .task-now): a new one vibrates, notifies (once permission
+//   was given: asked once, on a tap) and sets the tab's title; after a tap the page goes
+//   back to the top so the next card shows whole.
 // No inline handlers (hx-on, js: values): the Content-Security-Policy forbids eval.
 (() => {
   "use strict";
@@ -59,17 +64,87 @@
     else if (data && Number.isInteger(data.count)) setAlarmCount(data.count, data.priority);
   }
 
+  // what was sent while the connection was down is fetched again, not waited for
+  function resync() {
+    if (!window.htmx) return;
+    document.querySelectorAll('[hx-trigger*="sse:"]').forEach((el) => {
+      const name = /sse:[\w-]+/.exec(el.getAttribute("hx-trigger"))?.[0];
+      if (name) window.htmx.trigger(el, name); // as if the event had come
+    });
+  }
+
   const watched = new WeakSet();
+  let dropped = false;
+  let current = null;
   document.addEventListener("htmx:sseOpen", (event) => {
     setConnection("live");
     const source = event.detail?.source;
+    current = source || current;
     if (source && !watched.has(source)) {
       watched.add(source);
       source.addEventListener("alarm", onAlarmEvent);
+      source.addEventListener("badge", onAlarmEvent);
+    }
+    if (dropped) resync();
+    dropped = false;
+  });
+  document.addEventListener("htmx:sseError", () => {
+    dropped = true;
+    setConnection("down");
+  });
+  window.addEventListener("offline", () => {
+    dropped = true;
+    setConnection("down");
+  });
+  // the stream may have lived through a short drop (no error, no new open): then it is
+  // live again as soon as the network is, and what it may have missed is fetched
+  window.addEventListener("online", () => {
+    if (current && current.readyState === EventSource.OPEN) {
+      setConnection("live");
+      dropped = false;
+      resync();
     }
   });
-  document.addEventListener("htmx:sseError", () => setConnection("down"));
-  window.addEventListener("offline", () => setConnection("down"));
+
+  // ---- the operator's card ----
+  const baseTitle = document.title;
+  let shownKey = null;
+  function cardShown(isNew) {
+    const now = document.querySelector("#tasks .task-now");
+    if (!now) return;
+    const key = now.dataset.key || null;
+    const count = Number(now.dataset.count || 0);
+    document.title = key ? `(${count}) ${now.dataset.title} \u00b7 ${baseTitle}` : baseTitle;
+    if (isNew && key && key !== shownKey) {
+      if (typeof navigator.vibrate === "function") navigator.vibrate([200, 100, 200]);
+      if ("Notification" in window && Notification.permission === "granted") {
+        try {
+          new Notification(now.dataset.title, { tag: "sp-task", renotify: true });
+        } catch {
+          // a browser that notifies from a service worker only: the vibration must do
+        }
+      }
+    }
+    if (key !== shownKey) window.scrollTo(0, 0);
+    shownKey = key;
+  }
+  document.addEventListener("DOMContentLoaded", () => cardShown(false));
+  document.addEventListener("htmx:afterSwap", (event) => {
+    // a card that arrives by itself is new; the one after a person's own tap is not news
+    if (event.detail?.target?.id === "tasks") cardShown(event.detail.requestConfig?.verb === "get");
+  });
+  // permission to notify: asked once, from a person's own tap on a card, never again
+  document.addEventListener("click", (event) => {
+    if (!event.target.closest?.("#tasks button")) return;
+    if (!("Notification" in window) || Notification.permission !== "default") return;
+    try {
+      if (localStorage.getItem("sp-notify-asked")) return;
+      localStorage.setItem("sp-notify-asked", "1");
+    } catch {
+      return; // no storage: not asking at all is better than asking on every tap
+    }
+    Notification.requestPermission().catch(() => {});
+  });
 
   // ---- data-confirm ----
   function confirmed(el) {
