@@ -11,11 +11,11 @@ arrow from a to c.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass, replace
 
 from hw.faults import Fault, FaultKind
-from planner.expressions import Value, format_value
+from planner.expressions import Expr, Value, conjunction, conjuncts, format_value
 from planner.model import Model, TransitionKind, VariableKind
 from planner.runner import (
     IntentionState,
@@ -25,10 +25,12 @@ from planner.runner import (
     TransitionPlan,
 )
 from planner.station import Station
+from planner.wording import Wording, sentence
 
 # the drawing's grid, in SVG user units (= CSS pixels: the SVG is drawn at its own size)
 NODE_WIDTH = 208
-NODE_HEIGHT = 44
+NODE_HEIGHT = 44  # for one line of name and one of note; more lines make it taller
+LINE = 16  # a text line in a node
 GAP_X = 20
 GAP_Y = 30
 PAD = 8
@@ -45,8 +47,8 @@ class PlanNode:
 
     key: int  # the block's (or operation step's) position in the plan
     name: str
-    label: str  # the name, shortened to fit
-    note: str  # second line: the status in words, and what follows the step
+    label: str  # the step in words (its name without words)
+    note: str  # the status in words, and what follows the step
     title: str  # everything, for the tooltip and the list
     status: str
     level: int
@@ -54,6 +56,8 @@ class PlanNode:
     after: tuple[int, ...]  # every earlier step it waits for
     x: int
     y: int
+    label_lines: tuple[str, ...] = ()  # `label` wrapped to the node's width, never cut
+    note_lines: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -75,14 +79,11 @@ class PlanDrawing:
     height: int
     levels: int
     widest: int  # the most steps on one level: how many may run at once
+    node_height: int = NODE_HEIGHT  # every node's: room for the most lines of any
 
     @property
     def node_width(self) -> int:
         return NODE_WIDTH
-
-    @property
-    def node_height(self) -> int:
-        return NODE_HEIGHT
 
     @property
     def summary(self) -> str:
@@ -121,14 +122,27 @@ def shorten(text: str, limit: int = LABEL_CHARS) -> str:
     return text if len(text) <= limit else text[: limit - 1] + "…"
 
 
+def wrap(text: str, width: int = LABEL_CHARS) -> tuple[str, ...]:
+    """`text` in lines of at most `width` characters, broken at spaces only (a longer word
+    keeps a line of its own): wrapped, never cut."""
+    lines: list[str] = []
+    for word in text.split():
+        if lines and len(lines[-1]) + 1 + len(word) <= width:
+            lines[-1] += " " + word
+        else:
+            lines.append(word)
+    return tuple(lines)
+
+
 @dataclass(frozen=True)
 class Step:
-    """A step to draw: its name, status, second line and tooltip."""
+    """A step to draw: its name, status, second line and tooltip; `label` its words."""
 
     name: str
     status: str
     note: str
     title: str
+    label: str = ""
 
 
 def layout(kind: str, steps: Sequence[Step], after: Sequence[Iterable[int]]) -> PlanDrawing:
@@ -142,13 +156,16 @@ def layout(kind: str, steps: Sequence[Step], after: Sequence[Iterable[int]]) -> 
     for k, lv in enumerate(level):
         rows.setdefault(lv, []).append(k)
     widest = max((len(r) for r in rows.values()), default=0)
+    wrapped = [(wrap(s.label or s.name), wrap(s.note, LABEL_CHARS + 4)) for s in steps]
+    lines = max((len(a) + len(b) for a, b in wrapped), default=2)
+    box = max(NODE_HEIGHT, NODE_HEIGHT + (lines - 2) * LINE)
     width = PAD * 2 + max(widest, 1) * (NODE_WIDTH + GAP_X)  # a last gap for arrows
-    height = PAD * 2 + max(len(rows), 1) * (NODE_HEIGHT + GAP_Y) - GAP_Y
+    height = PAD * 2 + max(len(rows), 1) * (box + GAP_Y) - GAP_Y
     place: dict[int, tuple[int, int, int]] = {}
     for lv, row in rows.items():
         for lane, k in enumerate(row):
             x = PAD + lane * (NODE_WIDTH + GAP_X)
-            place[k] = (lane, x, PAD + lv * (NODE_HEIGHT + GAP_Y))
+            place[k] = (lane, x, PAD + lv * (box + GAP_Y))
     nodes = []
     for k, step in enumerate(steps):
         lane, x, y = place[k]
@@ -156,8 +173,8 @@ def layout(kind: str, steps: Sequence[Step], after: Sequence[Iterable[int]]) -> 
             PlanNode(
                 k,
                 step.name,
-                shorten(step.name),
-                shorten(step.note, LABEL_CHARS + 4),
+                step.label or step.name,
+                step.note,
                 step.title,
                 step.status,
                 level[k],
@@ -165,19 +182,22 @@ def layout(kind: str, steps: Sequence[Step], after: Sequence[Iterable[int]]) -> 
                 tuple(sorted(j for j in after[k] if j < k)),
                 x,
                 y,
+                *wrapped[k],
             )
         )
     edges = []
     for k, earlier in enumerate(direct(after)):
         for j in sorted(earlier):
-            edges.append(PlanEdge(j, k, _arrow(nodes[j], nodes[k]), nodes[j].status == "done"))
-    return PlanDrawing(kind, tuple(nodes), tuple(edges), width, height, len(rows), widest)
+            path = _arrow(nodes[j], nodes[k], box)
+            edges.append(PlanEdge(j, k, path, nodes[j].status == "done"))
+    drawing = PlanDrawing(kind, tuple(nodes), tuple(edges), width, height, len(rows), widest)
+    return replace(drawing, node_height=box)
 
 
-def _arrow(a: PlanNode, b: PlanNode) -> str:
-    """From the bottom of `a` to the top of `b`; across more than one level, down the gap
-    right of the leftmost of the two columns."""
-    x1, y1 = a.x + NODE_WIDTH // 2, a.y + NODE_HEIGHT
+def _arrow(a: PlanNode, b: PlanNode, box: int = NODE_HEIGHT) -> str:
+    """From the bottom of `a` to the top of `b` (nodes `box` tall); across more than one
+    level, down the gap right of the leftmost of the two columns."""
+    x1, y1 = a.x + NODE_WIDTH // 2, a.y + box
     x2, y2 = b.x + NODE_WIDTH // 2, b.y - 3  # room for the arrowhead
     if b.level - a.level <= 1:
         middle = (y1 + y2) // 2
@@ -210,6 +230,7 @@ def transition_plan(
     plan: TransitionPlan,
     model: Model,
     rejected: Iterable[str] = (),
+    words: Wording | None = None,
 ) -> PlanDrawing:
     """A transition plan (or the recovery or maintenance plan) as a drawing.
 
@@ -240,27 +261,30 @@ def transition_plan(
         waiting_for = plan.remaining.get(k, [])
         note = STATUS_WORDS[status]
         if status == "started" and waiting_for:
-            note += f", waits for {waiting_for[0]}"
+            first = words.transition(waiting_for[0]) if words is not None else waiting_for[0]
+            note += f", waits for {first}"
         elif following and status != "done":
             note += f" · then {len(following)} more"
         if transition.kind is TransitionKind.MAINTENANCE:
             note = "operator: " + note
-        title = [name]
-        if transition.description:
-            title.append(transition.description)
-        title.append(f"{transition.kind.value}; {STATUS_WORDS[status]}")
+        say = words.step if words is not None else str
+        label = sentence(say(name))
+        title = [label, f"{transition.kind.value}; {STATUS_WORDS[status]}"]
         if following:
-            title.append("then: " + ", ".join(following))
+            title.append("then: " + ", ".join(say(f) for f in following))
         if block.after:
             title.append(
-                "after: " + ", ".join(plan.blocks[j].transition for j in sorted(block.after))
+                "after: " + ", ".join(say(plan.blocks[j].transition) for j in sorted(block.after))
             )
-        steps.append(Step(name, status, note, "\n".join(title)))
+        steps.append(Step(name, status, note, "\n".join(title), label))
     return layout(kind, steps, [b.after for b in plan.blocks])
 
 
 def operation_plan(
-    plan: OperationPlan, station: Station, states: Mapping[str, OperationState]
+    plan: OperationPlan,
+    station: Station,
+    states: Mapping[str, OperationState],
+    words: Wording | None = None,
 ) -> PlanDrawing:
     """The operation plan as a drawing; an operation in error is marked wherever it stands."""
     steps = []
@@ -275,14 +299,12 @@ def operation_plan(
             status = "ready"
         else:
             status = "waiting"
-        description = station.operation(name).description
-        title = [name]
-        if description:
-            title.append(description)
-        title.append(STATUS_WORDS[status])
+        say = words.operation if words is not None else str
+        label = sentence(say(name))
+        title = [label, STATUS_WORDS[status]]
         if plan.after[k]:
-            title.append("after: " + ", ".join(plan.steps[j] for j in sorted(plan.after[k])))
-        steps.append(Step(name, status, STATUS_WORDS[status], "\n".join(title)))
+            title.append("after: " + ", ".join(say(plan.steps[j]) for j in sorted(plan.after[k])))
+        steps.append(Step(name, status, STATUS_WORDS[status], "\n".join(title), label))
     return layout("operations", steps, plan.after)
 
 
@@ -367,6 +389,8 @@ class StateRow:
     failures: int = 0
     armed: bool = False  # intention: starts by itself when its precondition holds
     resetting: bool = False  # operation: being reset in restart mode
+    label: str = ""  # its name for people (planner.wording); the name itself if not given
+    waits_for: str = ""  # intention, idle: the parts of its precondition that do not hold
 
     @property
     def idle(self) -> bool:
@@ -380,19 +404,52 @@ class StateRow:
     def failed(self) -> bool:
         return self.state in (IntentionState.ERROR, OperationState.ERROR)
 
+    @property
+    def resettable(self) -> bool:
+        """Operation, in restart mode: a reset changes something (seed 001 VIII-A: it puts
+        the operation back to initial, forgets its failures and plans to its precondition),
+        so only one running, in error or with failures counted gets a Reset button."""
+        return not self.resetting and (self.running or self.failed or self.failures > 0)
 
-def intention_rows(station: Station, state: RunnerState) -> list[StateRow]:
+
+Holds = Callable[[Expr, Mapping[str, Value]], bool]
+
+
+def unmet(expr: Expr, values: Mapping[str, Value], holds: Holds, words: Wording) -> str:
+    """The parts of `expr` that do not hold in `values`, in words ("" if it holds)."""
+    if holds(expr, values):
+        return ""
+    failing = [part for part in conjuncts(expr) if not holds(part, values)]
+    return words.condition(conjunction(failing or [expr]))
+
+
+def intention_rows(
+    station: Station,
+    state: RunnerState,
+    words: Wording | None = None,
+    holds: Holds | None = None,
+) -> list[StateRow]:
+    """With `words`, labels for people; with `holds` too, what an idle intention waits for."""
     rows = []
     for intention in station.intentions:
         name = intention.name
         current = state.intentions.get(name, IntentionState.INITIAL)
         why = state.intention_causes.get(name, "") if current == IntentionState.ERROR else ""
         armed = name in state.auto_start
-        rows.append(StateRow(name, intention.description, current, why, armed=armed))
+        label = sentence(words.intention(name)) if words is not None else name
+        waits = ""
+        if words is not None and holds is not None and current == IntentionState.INITIAL:
+            waits = unmet(intention.precondition, state.values, holds, words)
+        if words is not None:
+            why = words.text(why)
+        row = StateRow(name, intention.description, current, why, armed=armed)
+        rows.append(replace(row, label=label, waits_for=waits))
     return rows
 
 
-def operation_rows(station: Station, state: RunnerState) -> list[StateRow]:
+def operation_rows(
+    station: Station, state: RunnerState, words: Wording | None = None
+) -> list[StateRow]:
     rows = []
     for operation in station.operations:
         name = operation.name
@@ -400,29 +457,36 @@ def operation_rows(station: Station, state: RunnerState) -> list[StateRow]:
         why = state.operation_causes.get(name, "") if current == OperationState.ERROR else ""
         failures = state.failures.get(name, 0)
         resetting = name in state.resetting
-        rows.append(
-            StateRow(name, operation.description, current, why, failures, resetting=resetting)
-        )
+        label = sentence(words.operation(name)) if words is not None else name
+        why = words.text(why) if words is not None else why
+        row = StateRow(name, operation.description, current, why, failures, resetting=resetting)
+        rows.append(replace(row, label=label))
     return rows
 
 
 # -- the simulation panel ----------------------------------------------------------------------
 
 
-def fault_words(fault: Fault) -> str:
-    """A simulated fault in plain words."""
+def fault_words(fault: Fault, words: Wording | None = None) -> str:
+    """A simulated fault in plain words (the station's `words` for its names, if given)."""
+    resource = words.resource if words is not None else str
+    step = words.step if words is not None else str
     times = "" if fault.count == 1 else f" ({fault.count} times)"
     match fault.kind:
         case FaultKind.DISCONNECT:
-            return f"{fault.resource} stops answering"
+            return f"{resource(fault.resource)} stops answering"
         case FaultKind.RECONNECT:
-            return f"{fault.resource} answers again"
+            return f"{resource(fault.resource)} answers again"
         case FaultKind.BLOCK_EFFECT:
-            return f"{fault.effect} never happens"
+            return f"{step(fault.effect)} never happens"
         case FaultKind.UNBLOCK_EFFECT:
-            return f"{fault.effect} happens again"
+            return f"{step(fault.effect)} happens again"
         case FaultKind.REPLACE_EFFECT:
-            return f"{fault.instead} happens instead of {fault.effect}{times}"
+            instead, effect = step(fault.instead), step(fault.effect)
+            return f"{instead} happens instead of {effect}{times}"
         case FaultKind.SET:
-            changes = ", ".join(f"{n} := {format_value(v)}" for n, v in fault.values.items())
+            if words is not None:
+                changes = ", ".join(words.value(n, v) for n, v in fault.values.items())
+            else:
+                changes = ", ".join(f"{n} := {format_value(v)}" for n, v in fault.values.items())
             return f"someone changes the world by hand: {changes}"

@@ -47,7 +47,7 @@ EXPECTED_PERMISSIONS: dict[str, frozenset[str]] = {
     "auditor": frozenset({ALARMS, AUDIT}),
     "admin": ENGINEER | {USERS},
 }
-REFUSAL = "may not do this"  # the permission check's 403 (app.web.deps.require)
+REFUSAL = "role"  # the permission check's 403: "Your role (auditor) cannot …" (app.web.deps)
 
 
 @dataclass(frozen=True)
@@ -106,6 +106,7 @@ ROUTES = [
     Route("GET", "/redoc", PUBLIC, says="redoc"),
     Route("GET", "/static/{path:path}", PUBLIC, url="/static/css/hmi.css"),
     Route("GET", "/healthz", PUBLIC, says='"ok":true'),
+    Route("GET", "/favicon.ico", PUBLIC),  # the station's icon (app.web.assets)
     Route("GET", "/login", PUBLIC, says='name="password"'),
     Route("POST", "/login", PUBLIC, form={"name": "nobody"}, reached=422, says="password"),
     Route(
@@ -141,6 +142,7 @@ ROUTES = [
         "GET", "/", needs(TASKS), says='<h1 class="visually-hidden">Tasks', refused=(303, "/audit")
     ),
     Route("GET", "/fragments/tasks", needs(TASKS)),
+    Route("GET", "/today", needs(TASKS), says="Done today", refused=(303, "/audit")),
     Route(
         "POST",
         "/tasks/done",
@@ -177,6 +179,14 @@ ROUTES = [
     ),
     Route(
         "POST",
+        "/alarms/acknowledge-all",
+        needs(ACKNOWLEDGE),
+        form={"keys": ABSENT_ALARM["key"]},
+        reached=409,
+        says="nothing to acknowledge: no alarm",
+    ),
+    Route(
+        "POST",
         "/alarms/shelve",
         needs(ACKNOWLEDGE),
         form={**ABSENT_ALARM, "minutes": "5"},
@@ -193,10 +203,13 @@ ROUTES = [
     ),
     # the engineer's pages: station view, controls, model editor, simulation panel
     Route("GET", "/station", needs(STATION), says='data-resource="r1"'),
+    Route("GET", "/station/details", needs(STATION), says='data-variable="frame.state"'),
+    Route("GET", "/station/fragments/overview", needs(STATION)),
     Route("GET", "/station/fragments/status", needs(STATION)),
     Route("GET", "/station/fragments/plans", needs(STATION)),
     Route("GET", "/station/fragments/variables", needs(STATION)),
     Route("GET", "/station/fragments/set-variable", needs(STATION)),
+    Route("GET", "/station/timeline", needs(STATION), says="<h1>Timeline</h1>"),
     Route(
         "POST",
         "/station/intentions/start",
@@ -294,6 +307,22 @@ ROUTES = [
         "/users/disable",
         needs(USERS),
         form={"name": "no-such-user", "disabled": "true"},
+        reached=404,
+        says="there is no user",
+    ),
+    Route(
+        "POST",
+        "/users/password",
+        needs(USERS),
+        form={"name": "no-such-user", "password": "long-enough-pw-1"},
+        reached=404,
+        says="there is no user",
+    ),
+    Route(
+        "POST",
+        "/users/role",
+        needs(USERS),
+        form={"name": "no-such-user", "role": "operator"},
         reached=404,
         says="there is no user",
     ),
@@ -618,7 +647,7 @@ def expected(route: Route, name: str) -> tuple[int, str]:
     if name == "anonymous" or route.admits(name):
         # the handler ran, and refused the harmless arguments with its own message
         return route.reached, route.says
-    return route.refused or (403, REFUSAL)
+    return route.refused or (403, f"{REFUSAL} ({name}) cannot")
 
 
 @pytest.mark.parametrize(("name", "route", "bearer"), CASES)

@@ -452,7 +452,7 @@ def test_the_pages_live_within_their_policy_in_a_browser(
         ("/simulation", "main h1"),
         ("/audit", ".audit-filter"),
         ("/users", "main h1"),
-        ("/station", "#restart-reason"),
+        ("/station/details", "#restart-reason"),
     ):
         page.goto(served.url + path)
         page.locator(ready).first.wait_for()

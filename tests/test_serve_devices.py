@@ -22,7 +22,7 @@ DEVICES = ROOT / "models" / "demo_station.devices.yaml"
 
 
 def devices_shown(browser: httpx.Client) -> dict[str, bool]:
-    page = browser.get("/station").text
+    page = browser.get("/station/details").text
     found = re.findall(r'data-device="([^"]+)" data-connected="(true|false)"', page)
     return {name: connected == "true" for name, connected in found}
 
@@ -85,11 +85,11 @@ def test_the_demo_station_runs_on_its_emulators_and_takes_them_along(
                 if kind == "instruction":  # by then r2 has stopped answering on its emulator
                     r2_cut.append(devices_shown(engineer)["r2"] is False)
                     r2_error = r'id="resource-r2"[^>]*class="is-error"'
-                    r2_cut.append(bool(re.search(r2_error, engineer.get("/station").text)))
+                    r2_cut.append(bool(re.search(r2_error, engineer.get("/station/details").text)))
 
             done = lambda: state()["intentions"].get("tighten_bolts") == "f"  # noqa: E731
             seen = operate(watch, done, watch_r2, seconds=180)
-            assert ("instruction", "Move r2 home by hand") in seen, seen
+            assert ("instruction", "Move robot 2 home by hand") in seen, seen
             assert r2_cut == [True, True]
             # the emulated nutrunner tightens only while a robot's emulated joints stand at a
             # bolt pair: tightened bolts mean the robots moved there on ur_rtde's moveJ

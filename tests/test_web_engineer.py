@@ -35,7 +35,15 @@ def audit(station: RunningStation, kind: str, user: str) -> list[AuditRecord]:
 
 def test_station_page_shows_the_station_and_only_engineers_reach_it(station: RunningStation):
     client, _ = signed_in(station)
-    page = client.get("/station")
+    overview = client.get("/station")
+    assert overview.status_code == 200
+    for html in ('data-resource="r2"', 'data-intention="tighten_bolts"', "/station/details"):
+        assert html in overview.text
+    assert "Robot 2" in overview.text and "Tighten every bolt pair" in overview.text
+    assert 'data-variable="frame.state"' not in overview.text  # the details are elsewhere
+    assert 'hx-get="/station/fragments/overview"' in overview.text
+    assert client.get("/station/fragments/overview").status_code == 200
+    page = client.get("/station/details")
     assert page.status_code == 200
     shown = (
         'data-resource="r1"',
@@ -48,11 +56,12 @@ def test_station_page_shows_the_station_and_only_engineers_reach_it(station: Run
     for html in shown:
         assert html in page.text
     assert 'hx-trigger="sse:station"' in page.text
-    assert client.get("/station", params={"variable": "bp9.state"}).status_code == 404
+    assert client.get("/station/details", params={"variable": "bp9.state"}).status_code == 404
     form = client.get("/station/fragments/set-variable", params={"variable": "bp2.state"})
     values = re.search(r'<select id="set-variable-value"[^>]*>(.*?)</select>', form.text, re.S)
     assert values is not None
-    assert re.findall(r">(\w+)</option>", values.group(1)) == ["empty", "placed", "tightened"]
+    assert re.findall(r'value="(\w+)"', values.group(1)) == ["empty", "placed", "tightened"]
+    assert "not placed yet" in values.group(1)  # shown in words
 
     # each live part alone; unchanged since the client's last copy: 204, nothing to swap
     for part in ("status", "plans", "variables"):
@@ -129,8 +138,25 @@ def test_controls_act_through_the_runner_and_are_audited(station: RunningStation
     done = set_variable("on_engine", "frame put on by hand")
     assert done.status_code == 200
     assert live.view.state.values["frame.state"] == "on_engine"
-    assert "frame.state set to on_engine" in done.text
-    assert "(now on_engine)" in done.text  # the form comes back with the new value
+    assert "The ladder frame is on the engine: set." in done.text
+    assert "(now on the engine)" in done.text  # the form comes back with the new value
+
+    # an estimate that makes the state forbidden: warned, not done, until confirmed
+    early = {"variable": "oil_filter1.state", "value": "mounted", "reason": "seen mounted"}
+    warned = post(client, token, "/station/variables/set", **early)
+    assert warned.status_code == 200
+    assert warned.headers.get("hx-retarget") == "#set-variable"
+    assert "data-forbidden-warning" in warned.text
+    assert "oil filters only after every bolt pair is tightened" in warned.text
+    assert 'name="forbidden" value="confirmed"' in warned.text
+    assert 'value="seen mounted"' in warned.text  # what was typed stays
+    assert live.view.state.values["oil_filter1.state"] == "none"
+    confirmed = post(client, token, "/station/variables/set", forbidden="confirmed", **early)
+    assert confirmed.status_code == 200
+    assert live.view.state.values["oil_filter1.state"] == "mounted"
+    back = {**early, "value": "none", "reason": "a mistake"}
+    assert post(client, token, "/station/variables/set", **back).status_code == 200
+    assert live.view.state.values["oil_filter1.state"] == "none"
     resetting = post(client, token, "/station/operations/reset", name="home_r1")
     assert resetting.status_code == 200
     # a plain form (no htmx) gets a redirect back
@@ -139,7 +165,8 @@ def test_controls_act_through_the_runner_and_are_audited(station: RunningStation
 
     started = post(client, token, "/station/intentions/start", name="tighten_bolts")
     assert started.status_code == 200
-    assert "Intention tighten_bolts started" in started.text
+    assert "Tighten every bolt pair: started." in started.text
+    assert "data-waits-for" not in started.text.split('id="intention-tighten_bolts"')[1][:600]
     station.wait(lambda: live.view.state.intentions["tighten_bolts"] == "e")
     station.wait(lambda: live.view.state.transition_plan is not None)
     plans = client.get("/station/fragments/plans").text
@@ -149,6 +176,11 @@ def test_controls_act_through_the_runner_and_are_audited(station: RunningStation
     assert any(status in ("started", "done") for _, status in steps)  # the first is under way
     assert {"tighten_bp1", "tighten_bp4"} <= {name for name, _ in steps}
     assert 'class="plan-edge' in plans  # the partial order's arrows
+    texts = re.findall(r">([^<>]+)<", plans)  # what a person reads: words, no model names
+    assert [t for t in texts if re.search(r"\b(r1|r2|nr)[._]\w", t)] == []
+    assert "Place bolt pair 1" in texts
+    assert not re.search(r"\b1 steps\b", plans)
+    assert re.search(r'data-label="Time">\d\d:\d\d:\d\d<', plans)  # the time of day
 
     records = audit(station, "operator", "engineer")
     subjects = {r.subject for r in records}
@@ -243,7 +275,7 @@ def test_simulation_panel_plays_an_experiment(station: RunningStation):
     assert len(experiments) == 9
     for key in experiments:
         assert f'data-experiment="{key}"' in page.text
-    assert "r2 stops answering" in page.text
+    assert "robot 2 stops answering" in page.text  # the fault in words
     assert "on the simulated world" in page.text and "emulated devices" not in page.text
     assert ">SIM</span>" in page.text and ">EMU</span>" not in page.text
 
@@ -257,7 +289,7 @@ def test_simulation_panel_plays_an_experiment(station: RunningStation):
     assert played.status_code == 200
     assert live.view.experiment.startswith("E6")
     assert any("disconnect" in fault for fault in live.view.armed_faults)
-    assert "r2 stops answering" in played.text
+    assert "robot 2 stops answering" in played.text  # the armed fault in words
     assert [r for r in audit(station, "experiment", "engineer") if r.subject.startswith("E6")]
     station.wait(lambda: live.view.state.intentions["tighten_bolts"] == "e")
 
@@ -286,3 +318,81 @@ def test_plan_drawing_puts_independent_steps_side_by_side():
     # the arrow from s1 skips a level: it runs down the gap between the columns
     skip = drawing.edges[1].path
     assert f"L{s0.x + plan_view.NODE_WIDTH + plan_view.GAP_X // 2}," in skip
+
+
+def test_plan_steps_are_words_wrapped_never_cut_and_counted_in_good_english():
+    from app import plan_view
+    from app.web.engineer import steps
+
+    long = "find the hanging tools with robot 1's camera and wait for the operator to answer"
+    lines = plan_view.wrap(long)
+    assert " ".join(lines) == long and all(len(line) <= plan_view.LABEL_CHARS for line in lines)
+    drawing = plan_view.layout("test", [plan_view.Step("s", "ready", "next", "", long)], [()])
+    (node,) = drawing.nodes
+    assert node.label_lines == lines and node.label == long
+    assert drawing.node_height >= plan_view.NODE_HEIGHT + (len(lines) - 1) * plan_view.LINE
+    assert (steps(1), steps(5)) == ("1 step", "5 steps")
+
+
+def test_timeline_page_shows_the_run_from_the_audit_log(station: RunningStation):
+    from app.run_history import run_history
+
+    client, token = signed_in(station)
+    empty = client.get("/station/timeline")
+    assert empty.status_code == 200
+    assert "No run yet" in empty.text
+    assert (
+        post(client, token, "/station/intentions/start", name="assemble_engine").status_code == 200
+    )
+    store, name = station.built.server.store, station.live.name
+    station.wait(lambda: bool(run_history(store, name).runs), 20)
+    running = client.get("/station/timeline")
+    assert 'data-outcome="running"' in running.text
+    assert '<svg class="timeline-chart"' in running.text
+    assert "assemble the engine" in running.text  # the intention in words
+    assert (
+        post(client, token, "/station/intentions/cancel", name="assemble_engine").status_code == 200
+    )
+    station.wait(lambda: run_history(store, name).runs[-1].outcome == "cancelled", 20)
+    (run,) = run_history(store, name).runs
+    page = client.get("/station/timeline", params={"run": run.first})
+    assert 'data-outcome="cancelled"' in page.text
+    assert f'href="/station/timeline?run={run.first}"' in page.text
+    assert client.get("/station/timeline", params={"run": run.first + 10_000}).status_code == 404
+    operator, _ = signed_in(station, "operator")
+    assert operator.get("/station/timeline", follow_redirects=False).status_code == 403
+
+
+def test_start_says_which_part_of_the_precondition_does_not_hold(station: RunningStation):
+    client, token = signed_in(station)
+    row = 'id="intention-tighten_bolts"'
+    before = client.get("/station").text.split(row)[1][:1500]
+    assert "Cannot start yet: needs the ladder frame is on the engine" in before
+    assert "the engine is in the station" not in before  # that part holds: not listed
+    assert "It waits until the ladder frame is on the engine." in before  # the confirm
+    after = post(client, token, "/station/intentions/start", name="tighten_bolts").text
+    assert "starts once its precondition holds; not yet: the ladder frame is on the engine" in after
+    assert "Waits for: the ladder frame is on the engine" in after.split(row)[1][:1500]
+    assert (
+        post(client, token, "/station/intentions/cancel", name="tighten_bolts").status_code == 200
+    )
+
+
+def test_in_restart_mode_only_operations_a_reset_changes_get_a_reset_button(
+    station: RunningStation,
+):
+    client, token = signed_in(station)
+    live = station.live
+    post(client, token, "/station/intentions/start", name="assemble_engine")
+    station.wait(lambda: bool(live.view.state.operations_in("e")))
+    post(client, token, "/station/restart/enter", reason="checking the reset buttons")
+    station.wait(lambda: live.view.state.restart_mode)
+    page = client.get("/station/fragments/status").text
+    running = set(live.view.state.operations_in("e")) | set(live.view.state.operations_in("error"))
+    rows = re.findall(r'<tr id="operation-(\w+)".*?</tr>', page, re.S)
+    blocks = dict(zip(rows, re.split(r'<tr id="operation-\w+"', page)[1:], strict=True))
+    with_reset = {n for n, html in blocks.items() if "/station/operations/reset" in html}
+    assert running and with_reset == running, (with_reset, running)
+    assert len(blocks) == len(live.view.model.station.operations)
+    post(client, token, "/station/restart/leave")
+    post(client, token, "/station/intentions/cancel", name="assemble_engine")

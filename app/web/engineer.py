@@ -1,5 +1,8 @@
-"""The engineer's pages: the live station view and its controls, the model editor with its
-versions, and the simulation panel (the experiments E1-E9 on the simulated station).
+"""The engineer's pages: the station's details (`/station/details`: states, plans, variables,
+devices) and its controls, and the simulation panel (the experiments E1-E9 on the simulated
+station); the page helpers the other engineer modules share.  The overview and the timeline
+are in app.web.station_pages, the model editor in app.web.model_pages.  Texts are in the
+model's words (planner.wording); names stay in form fields and data-* attributes only.
 
 Every control is an action for the runner (app.web.actions): a typo in a name gets a 404
 with a suggestion, a refusal a 409 with the runner's reason, and the runner's `operator`
@@ -10,19 +13,18 @@ and `refused` events, which carry the user, go to the audit log.  Pages are buil
 from __future__ import annotations
 
 import hashlib
+import time
 from datetime import datetime
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Depends, Form, HTTPException, Query, Request
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
 
-from app import plan_view
+from app import plan_view, timeline
 from app.auth import Permission, allowed
 from app.station_cycle import ScheduledFault
 from app.station_view import StationView
-from app.store import versions
 from app.views import task_cards
-from app.web import model_editing
 from app.web.actions import (
     answer,
     effect_name,
@@ -33,11 +35,12 @@ from app.web.actions import (
     perform,
 )
 from app.web.deps import Caller, page_context, require, server
-from planner.expressions import format_expr, format_value
+from planner.expressions import Value, format_value
 from planner.runner import (
     Action,
     CancelIntention,
     EnterRestart,
+    Event,
     EventKind,
     IntentionState,
     LeaveRestart,
@@ -47,6 +50,7 @@ from planner.runner import (
     SetEstimated,
     StartIntention,
 )
+from planner.wording import Wording, sentence
 
 router = APIRouter(include_in_schema=False)
 
@@ -122,7 +126,7 @@ def required(text: str, what: str) -> str:
 
 def status_context(view: StationView) -> dict[str, Any]:
     """Restart mode, resources, intentions, operations, timed-out effects."""
-    s, station = view.state, view.model.station
+    s, station, words = view.state, view.model.station, view.model.words
     return {
         "restart": s.restart_mode,
         "restart_reason": s.restart_reason if s.restart_mode else "",
@@ -130,17 +134,20 @@ def status_context(view: StationView) -> dict[str, Any]:
         "resources": [
             {
                 "name": r.name,
-                "description": r.description,
+                "label": sentence(words.resource(r.name)),
                 "unavailable": r.name in s.unavailable,
                 "silent": int(view.now - s.last_heard.get(r.name, view.now)),
             }
             for r in station.resources
         ],
         "devices": view.devices,
-        "intentions": plan_view.intention_rows(station, s),
-        "operations": plan_view.operation_rows(station, s),
+        "intentions": plan_view.intention_rows(station, s, words, view.runner.holds),
+        "operations": plan_view.operation_rows(station, s, words),
         "timed_out": sorted(s.timed_out),
-        "forbidden": sorted(s.relaxed) if s.recovery is not None else [],
+        "timed_out_words": {n: sentence(words.step(n)) for n in s.timed_out},
+        "forbidden": [words.specification(n) for n in sorted(s.relaxed)]
+        if s.recovery is not None
+        else [],
         "halted": s.halted,
         "retries": view.runner.config.retries,
     }
@@ -148,22 +155,35 @@ def status_context(view: StationView) -> dict[str, Any]:
 
 def plans_context(view: StationView) -> dict[str, Any]:
     """The plans being followed, drawn as their partial orders, and the latest planning."""
-    s, model = view.state, view.model.station.model
+    s, model, words = view.state, view.model.station.model, view.model.words
     plans = []
     if s.recovery is not None:
         plans.append(
             (
                 "Recovery from a forbidden state",
                 "Every step waits for an operator's approval on the tasks page.",
-                plan_view.transition_plan("recovery", s.recovery, model, s.rejected),
+                plan_view.transition_plan("recovery", s.recovery, model, s.rejected, words),
             )
         )
     if s.maintenance is not None:
+        drawing = plan_view.transition_plan("maintenance", s.maintenance, model, (), words)
+        found = [e for e in view.events if e.kind is EventKind.PLAN]
+        found = [e for e in found if e.detail.get("reason") == "maintenance"]
+        length = int(found[-1].detail.get("length", 0) or 0) if found else 0
+        shown = len(drawing.nodes)
+        # the runner follows the plan found up to its last maintenance step (seed 000 4.5)
+        part = (
+            f"The first {steps(shown)} of the {steps(length)} planned, up to the last "
+            "maintenance step; after it the station plans production again. "
+            if length > shown
+            else ""
+        )
+        about = f" for {words.operation(s.maintenance_for)}" if s.maintenance_for else ""
         plans.append(
             (
-                "Maintenance plan" + (f" for {s.maintenance_for}" if s.maintenance_for else ""),
-                "The operator's steps appear as instruction cards on the tasks page.",
-                plan_view.transition_plan("maintenance", s.maintenance, model),
+                "Maintenance plan" + about,
+                part + "The operator's steps appear as instruction cards on the tasks page.",
+                drawing,
             )
         )
     if s.operation_plan is not None:
@@ -174,7 +194,7 @@ def plans_context(view: StationView) -> dict[str, Any]:
                 "Operations side by side are independent; this station starts one at a time."
                 if sequential
                 else "Operations side by side are independent and start together.",
-                plan_view.operation_plan(s.operation_plan, view.model.station, s.operations),
+                plan_view.operation_plan(s.operation_plan, view.model.station, s.operations, words),
             )
         )
     if s.transition_plan is not None:
@@ -182,11 +202,36 @@ def plans_context(view: StationView) -> dict[str, Any]:
             (
                 "Transition plan" + (" (restart mode: resets)" if s.restart_mode else ""),
                 "Steps side by side touch no common variable: they may run in parallel.",
-                plan_view.transition_plan("transitions", s.transition_plan, model),
+                plan_view.transition_plan("transitions", s.transition_plan, model, (), words),
             )
         )
     planning = [e for e in view.events if e.kind is EventKind.PLAN][-RECENT_PLANS:]
-    return {"plans": plans, "planning": list(reversed(planning))}
+    return {"plans": plans, "planning": [planning_row(view, e) for e in reversed(planning)]}
+
+
+def steps(count: int) -> str:
+    return f"{count} step{'' if count == 1 else 's'}"
+
+
+PLANNERS = {"OP": "operations", "TP": "transitions"}  # the planning level, in words
+
+
+def planning_row(view: StationView, event: Event) -> dict[str, Any]:
+    """One planning call in words, at its time of day."""
+    words, detail = view.model.words, event.detail
+    found = detail.get("status") == "found"
+    result = "found" + (f", {steps(int(detail['length']))}" if "length" in detail else "")
+    operation = str(detail.get("operation", ""))
+    wall = time.time() - (view.now - event.time)
+    return {
+        "planner": PLANNERS.get(str(detail.get("level", "")), "planner")
+        + (f" for {words.operation(operation)}" if operation else ""),
+        "why": timeline.REASON_WORDS.get(str(detail.get("reason", "")), "planned again"),
+        "result": result if found else f"no plan ({words.text(str(detail.get('status', '')))})",
+        "found": found,
+        "at": datetime.fromtimestamp(wall).astimezone().strftime("%H:%M:%S"),
+        "millis": event.millis,
+    }
 
 
 def variables_context(view: StationView) -> dict[str, Any]:
@@ -194,39 +239,75 @@ def variables_context(view: StationView) -> dict[str, Any]:
     return {"groups": plan_view.variable_groups(station, view.state.values, view.state.unavailable)}
 
 
-def set_form_context(view: StationView, variable: str = "") -> dict[str, Any]:
-    """The set-a-variable form: which variable, its domain, its current value."""
-    model = view.model.station.model
+def set_form_context(
+    view: StationView,
+    variable: str = "",
+    value: str = "",
+    reason: str = "",
+    violated: tuple[str, ...] = (),
+) -> dict[str, Any]:
+    """The set-a-variable form: which variable, its domain, its current value; after a
+    value that would make the state forbidden, that value and reason, and the warning."""
+    model, words = view.model.station.model, view.model.words
     names = plan_view.settable_variables(model)
     chosen = variable or (names[0] if names else "")
     if chosen:
         known(chosen, names, "estimated or decision variable")
     groups = plan_view.variable_groups(view.model.station, view.state.values)
     options = [
-        (g.resource or "product", [row.name for _, rows in g.kinds for row in rows if row.settable])
+        (
+            sentence(words.resource(g.resource)) if g.resource else "The product",
+            [(r.name, words.variable(r.name)) for _, rows in g.kinds for r in rows if r.settable],
+        )
         for g in groups
     ]
+    domain = plan_view.domain_texts(model, chosen) if chosen else []
+    current = format_value(view.state.values[chosen]) if chosen else ""
     return {
         "set_options": [(label, names) for label, names in options if names],
         "set_variable": chosen,
-        "set_domain": plan_view.domain_texts(model, chosen) if chosen else [],
-        "set_current": format_value(view.state.values[chosen]) if chosen else "",
+        "set_domain": [(v, words.value_name(chosen, v)) for v in domain],
+        "set_current": current,
+        "set_current_words": words.value_name(chosen, current) if chosen else "",
+        "set_value": value or current,
+        "set_reason": reason,
+        "set_violated": [words.specification(n) for n in violated],
+        "set_value_words": words.value(chosen, value) if violated else "",
     }
 
 
-@router.get("/station")
+def would_violate(view: StationView, variable: str, value: Value) -> tuple[str, ...]:
+    """The specifications that hold now and would not with `variable` set to `value`: the
+    state it makes forbidden (the station would start recovering from it at once)."""
+    now = view.state.values
+    after = {**now, variable: value}
+    holds = view.runner.holds
+    return tuple(
+        spec.name
+        for spec in view.model.station.model.specifications
+        if holds(spec.invariant, now) and not holds(spec.invariant, after)
+    )
+
+
+@router.get("/station/details")
 def station_page(request: Request, caller: Station, variable: str = "") -> Response:
     view = server(request).live.view
+    return station_page_with(request, caller, view, set_form_context(view, variable))
+
+
+def station_page_with(
+    request: Request, caller: Caller, view: StationView, set_form: dict[str, Any]
+) -> Response:
     return render(
         request,
-        "station.html",
+        "station_details.html",
         caller,
         "station",
         view,
         **status_context(view),
         **plans_context(view),
         **variables_context(view),
-        **set_form_context(view, variable),
+        **set_form,
     )
 
 
@@ -269,23 +350,39 @@ async def control(request: Request, caller: Caller, action: Action, done: str) -
     await perform(server(request).live, action)
     if not htmx(request):
         return RedirectResponse("/station", status_code=303)
+    if request.headers.get("hx-target") == "station-overview":  # a Start or Cancel there
+        from app.web.station_pages import overview_fragment
+
+        return overview_fragment(request, caller, done)
     view = server(request).live.view
     context = status_context(view)
     return render(request, "_station_status.html", caller, "station", view, flash=done, **context)
+
+
+def started(view: StationView, name: str) -> str:
+    """What a Start did: started, or armed until its precondition holds (said in words)."""
+    words = view.model.words
+    found = [i for i in view.model.station.intentions if i.name == name]
+    waits = plan_view.unmet(found[0].precondition, view.state.values, view.runner.holds, words)
+    title = sentence(words.intention(name))
+    if waits:
+        return f"{title}: starts once its precondition holds; not yet: {waits}."
+    return f"{title}: started."
 
 
 @router.post("/station/intentions/start")
 async def start_intention(request: Request, caller: Control, name: Name) -> Response:
     live = server(request).live
     action = StartIntention(user=caller.name, name=intention_name(live, name.strip()))
-    return await control(request, caller, action, f"Intention {action.name} started.")
+    return await control(request, caller, action, started(live.view, action.name))
 
 
 @router.post("/station/intentions/cancel")
 async def cancel_intention(request: Request, caller: Control, name: Name) -> Response:
     live = server(request).live
     action = CancelIntention(user=caller.name, name=intention_name(live, name.strip()))
-    return await control(request, caller, action, f"Intention {action.name} cancelled.")
+    done = f"{sentence(live.view.model.words.intention(action.name))}: cancelled."
+    return await control(request, caller, action, done)
 
 
 @router.post("/station/restart/enter")
@@ -321,190 +418,29 @@ async def set_variable(
     variable: Name,
     value: Annotated[str, Form(max_length=200)],
     reason: Reason = "",
+    forbidden: Annotated[str, Form(max_length=20)] = "",
 ) -> Response:
     live = server(request).live
     name, chosen = estimated_value(live, variable.strip(), value)
     why = required(reason, "a reason for setting the variable")
+    violated = would_violate(live.view, name, chosen)
+    if violated and forbidden != "confirmed":  # warn first; the form asks to confirm
+        context = set_form_context(live.view, name, format_value(chosen), why, violated)
+        if not htmx(request):
+            return station_page_with(request, caller, live.view, context)
+        headers = {"HX-Retarget": "#set-variable", "HX-Reswap": "outerHTML"}
+        return render(
+            request, "_station_set.html", caller, "station", live.view, headers=headers, **context
+        )
     await perform(live, SetEstimated(user=caller.name, variable=name, value=chosen, reason=why))
     if not htmx(request):
-        return RedirectResponse(f"/station?variable={name}", status_code=303)
+        return RedirectResponse(f"/station/details?variable={name}", status_code=303)
     view = live.view
-    done = f"{name} set to {format_value(view.state.values[name])}."
+    done = f"{sentence(view.model.words.value(name, view.state.values[name]))}: set."
     context = {**variables_context(view), **set_form_context(view, name), "set_form_oob": True}
     return render(
         request, "_station_variables.html", caller, "station", view, flash=done, **context
     )
-
-
-# -- the model editor ---------------------------------------------------------------------------
-
-
-def versions_context(request: Request) -> dict[str, Any]:
-    srv = server(request)
-    active_id = srv.live.model.version_id
-    with srv.store.sessions() as session:
-        rows = [
-            {
-                "number": v.number,
-                "author": v.author,
-                "note": v.note,
-                "saved": datetime.fromtimestamp(v.created_at).astimezone(),
-                "active": v.id == active_id,
-            }
-            for v in versions.versions(session, srv.live.name)
-        ]
-    return {"versions": rows, "active_number": srv.live.model.number}
-
-
-def busy_context(request: Request) -> dict[str, Any]:
-    return {"busy": server(request).live.busy()}
-
-
-def model_page(
-    request: Request,
-    caller: Caller,
-    text: str,
-    shown: str,
-    status: int = 200,
-    **extra: Any,
-) -> Response:
-    return render(
-        request,
-        "model.html",
-        caller,
-        "model",
-        server(request).live.view,
-        status=status,
-        text=text,
-        shown=shown,
-        **versions_context(request),
-        **busy_context(request),
-        **extra,
-    )
-
-
-@router.get("/model")
-def model_editor(
-    request: Request,
-    caller: ModelEditor,
-    version: Annotated[int | None, Query(ge=1, le=model_editing.MAX_VERSION)] = None,
-) -> Response:
-    srv = server(request)
-    if version is None:
-        text, shown = srv.live.model.text, f"version {srv.live.model.number} (active)"
-    else:
-        text, shown = model_editing.stored(srv, version).text, f"version {version}"
-    return model_page(request, caller, text, shown)
-
-
-Text = Annotated[str, Form(max_length=model_editing.MAX_MODEL_CHARS)]
-
-
-@router.post(
-    "/model/validate",
-    max_body_size=model_editing.MODEL_BODY_BYTES,
-    form_limits=model_editing.MODEL_FORM_LIMITS,  # type: ignore[arg-type]
-)
-def validate_model(request: Request, caller: ModelEditor, text: Text = "") -> Response:
-    found = model_editing.problems(text)
-    return render(
-        request, "_model_errors.html", caller, "model", server(request).live.view, problems=found
-    )
-
-
-@router.post(
-    "/model/save",
-    max_body_size=model_editing.MODEL_BODY_BYTES,
-    form_limits=model_editing.MODEL_FORM_LIMITS,  # type: ignore[arg-type]
-)
-def save_model(
-    request: Request,
-    caller: ModelEditor,
-    text: Text = "",
-    note: Annotated[str, Form(max_length=500)] = "",
-) -> Response:
-    srv = server(request)
-    row, found = model_editing.save(srv, text, caller.name, note.strip())
-    view = srv.live.view
-    if row is None:
-        message = f"Not saved: the model has {len(found)} problem{'' if len(found) == 1 else 's'}."
-        if not htmx(request):
-            return model_page(
-                request, caller, text, "unsaved text", 422, problems=found, error=message
-            )
-        headers = {"HX-Retarget": "#model-errors", "HX-Reswap": "outerHTML"}
-        return render(
-            request,
-            "_model_errors.html",
-            caller,
-            "model",
-            view,
-            status=422,
-            headers=headers,
-            problems=found,
-            flash_error=message,
-        )
-    if not htmx(request):
-        return RedirectResponse(f"/model?version={row.number}", status_code=303)
-    return render(
-        request,
-        "_model_versions.html",
-        caller,
-        "model",
-        view,
-        flash=f"Saved as version {row.number}; activate it to run it.",
-        problems=[],
-        clear_errors=True,
-        **versions_context(request),
-        **busy_context(request),
-    )
-
-
-@router.get("/model/diff")
-def model_diff(
-    request: Request,
-    caller: ModelEditor,
-    version: Annotated[int, Query(ge=1, le=model_editing.MAX_VERSION)],
-) -> Response:
-    srv = server(request)
-    row = model_editing.stored(srv, version)
-    active = srv.live.model
-    lines = model_editing.diff(
-        active.text, row.text, f"version {active.number} (active)", f"version {version}"
-    )
-    context: dict[str, Any] = {"diff": lines, "diff_version": version, "diff_active": active.number}
-    if htmx(request):
-        return render(request, "_model_diff.html", caller, "model", srv.live.view, **context)
-    return model_page(request, caller, active.text, f"version {active.number} (active)", **context)
-
-
-@router.post("/model/activate")
-async def activate_model(
-    request: Request,
-    caller: Activator,
-    version: Annotated[int, Form(ge=1, le=model_editing.MAX_VERSION)],
-) -> Response:
-    srv = server(request)
-    await model_editing.activate(srv, version, caller.name)
-    if not htmx(request):
-        return RedirectResponse("/model", status_code=303)
-    return render(
-        request,
-        "_model_versions.html",
-        caller,
-        "model",
-        srv.live.view,
-        flash=f"Version {version} is active now.",
-        **versions_context(request),
-        **busy_context(request),
-    )
-
-
-@router.get("/model/fragments/station")
-def model_station(request: Request, caller: ModelEditor) -> Response:
-    view = server(request).live.view
-    context = busy_context(request)
-    return live_fragment(request, "_model_station.html", caller, "model", view, **context)
 
 
 # -- the simulation panel -----------------------------------------------------------------------
@@ -518,42 +454,45 @@ def simulated(request: Request) -> StationView:
     return view
 
 
-def fault_text(fault: ScheduledFault) -> str:
-    text = plan_view.fault_words(fault.fault)
+def fault_text(fault: ScheduledFault, words: Wording) -> str:
+    text = plan_view.fault_words(fault.fault, words)
     if fault.when is not None:
-        return f"{text}, when {format_expr(fault.when)}"
+        return f"{text}, when {words.condition(fault.when)}"
     if fault.at is not None:
         return f"{text}, {fault.at:g} s after the start"
     return text
 
 
 def experiments_context(request: Request) -> dict[str, Any]:
+    words = server(request).live.view.model.words
     rows = []
     for key, (title, scenario) in sorted(server(request).experiments.items()):
         expect = scenario.expect
         rows.append(
             {
                 "id": key,
-                "title": title,
-                "description": scenario.description,
-                "intentions": list(scenario.intentions or ()),
-                "faults": [fault_text(f) for f in scenario.faults],
-                "recovery": [str(r) for r in expect.get("recovery") or ()],
-                "operator": [str(o) for o in expect.get("operator") or ()],
+                "title": words.text(title),
+                "description": words.text(scenario.description),
+                "intentions": [words.intention(i) for i in scenario.intentions or ()],
+                "faults": [fault_text(f, words) for f in scenario.faults],
+                "recovery": [words.text(str(r)) for r in expect.get("recovery") or ()],
+                "operator": [words.text(str(o)) for o in expect.get("operator") or ()],
             }
         )
     return {"experiments": rows}
 
 
 def simulation_status(request: Request, view: StationView) -> dict[str, Any]:
-    s = view.state
+    s, words = view.state, view.model.words
     playing = [sc for title, sc in server(request).experiments.values() if title == view.experiment]
-    words = {f.text: fault_text(f) for f in (playing[0].faults if playing else ())}
+    faults = playing[0].faults if playing else ()
+    said = {f.text: fault_text(f, words) for f in faults}
     return {
-        "armed": [words.get(text, text) for text in view.armed_faults],
-        "executing": s.intentions_in(IntentionState.EXECUTING)
-        + s.operations_in(OperationState.EXECUTING),
-        "errors": s.intentions_in(IntentionState.ERROR) + s.operations_in(OperationState.ERROR),
+        "armed": [said.get(text, words.text(text)) for text in view.armed_faults],
+        "executing": [words.intention(n) for n in s.intentions_in(IntentionState.EXECUTING)]
+        + [words.operation(n) for n in s.operations_in(OperationState.EXECUTING)],
+        "errors": [words.intention(n) for n in s.intentions_in(IntentionState.ERROR)]
+        + [words.operation(n) for n in s.operations_in(OperationState.ERROR)],
         "tasks": len(task_cards(view)),
     }
 
@@ -595,6 +534,17 @@ async def play_experiment(request: Request, caller: Simulator, experiment: Name)
         caller,
         "simulation",
         view,
-        flash=f"{title}: started. Watch the station and the tasks pages.",
+        flash=f"{view.model.words.text(title)}: started. Watch the station and the tasks pages.",
         **simulation_status(request, view),
     )
+
+
+def _include_model_pages() -> None:
+    """The model editor's routes (app.web.model_pages), served with these: it uses this
+    module's page helpers, so it is imported once they exist."""
+    from app.web import model_pages
+
+    router.include_router(model_pages.router)
+
+
+_include_model_pages()

@@ -1,0 +1,68 @@
+"""A station's runs read back from its audit log: the engines it built, and what happened in
+each (`app.runs`, `app.timeline`).
+
+The runner's events are in the log as `app.station_records.event_entry` wrote them, with
+their station time in `detail["station_time"]` and the wall time of their round in the
+record's `time`.  An experiment played from the simulation panel is a record of its own
+(no station time): it takes the time of the record before it.  People's records that
+repeat a runner's event (a card done) carry no station time and are left out.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+
+from sqlalchemy import select
+
+from app.runs import Happening, Run, find_runs, on_one_clock
+from app.store.db import Store
+from app.store.tables import AuditRecord
+from app.timeline import KINDS
+
+LIMIT = 20_000  # the newest records read: a few hours of a busy station
+
+
+@dataclass(frozen=True)
+class History:
+    """The happenings read, on one clock, and the runs found in them, oldest first."""
+
+    happenings: tuple[Happening, ...]
+    runs: tuple[Run, ...]
+
+    def run(self, first: int | None) -> Run | None:
+        """The run that starts at record `first`; by default the newest."""
+        if first is None:
+            return self.runs[-1] if self.runs else None
+        return next((r for r in self.runs if r.first == first), None)
+
+
+def happenings(store: Store, station: str, limit: int = LIMIT) -> list[Happening]:
+    """The station's newest `limit` records a timeline reads, oldest first, on one clock."""
+    query = (
+        select(AuditRecord)
+        .where(AuditRecord.station == station, AuditRecord.kind.in_(sorted(KINDS)))
+        .order_by(AuditRecord.id.desc())
+        .limit(limit)
+    )
+    with store.sessions() as session:
+        rows = list(reversed(session.scalars(query).all()))
+        found: list[Happening] = []
+        last = 0.0
+        for row in rows:
+            detail = json.loads(row.detail or "{}")
+            time = detail.pop("station_time", None)
+            if time is None and row.kind != "experiment":
+                continue
+            last = last if time is None else float(time)
+            found.append(
+                Happening(
+                    last, row.kind, row.subject, detail, row.user, row.resource, row.id, row.time
+                )
+            )
+    return on_one_clock(found)
+
+
+def run_history(store: Store, station: str, limit: int = LIMIT) -> History:
+    found = happenings(store, station, limit)
+    return History(tuple(found), tuple(find_runs(found)))
