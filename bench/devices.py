@@ -90,7 +90,9 @@ class Bench:
 def demo_station(answer_after: float = 1.0) -> Iterator[Bench]:
     """The demo station's emulators and devices, all connected; everything stopped after."""
     station = load_station(MODEL.read_text(), str(MODEL))
-    text = on_block(DEVICES.read_text(), free_block(range(120, 250)))
+    # blocks 200-249: apart from the tests' (tests/test_station_devices.py takes 120-199), so
+    # that the benchmark's test and the tests may run at once (pytest -n)
+    text = on_block(DEVICES.read_text(), free_block(range(200, 250)))
     devices = load_devices(text, "demo_station.devices.yaml", station)
     start = start_values(station, {})
     with emulate(station, devices, start, answer_after=answer_after) as emulated:
@@ -394,13 +396,15 @@ def usage(bench: Bench, metered: Metered, planning_pid: int) -> Usage:
         else:
             what = f"other child {pid}: {cmdline[:40]}"
         found.seconds[(what, DEVICE_LAYER)] = cpu_seconds(f"/proc/{pid}/stat")
-    main_thread = threading.main_thread().native_id
+    # the thread running the loop: this one (under pytest-xdist it is not the main thread)
+    loop_thread = threading.get_native_id()
     for thread in threading.enumerate():
         seconds = cpu_seconds(f"/proc/self/task/{thread.native_id}/stat")
-        if thread.native_id == main_thread:
+        if thread.native_id == loop_thread:
             found.seconds[("station main thread: device calls", DEVICE_LAYER)] = metered.cpu
-            found.seconds[("station main thread: runner tick, the rest", RUNNER)] = (
-                seconds - metered.cpu
+            # /proc counts in clock ticks (10 ms), thread_time() finer: never below zero
+            found.seconds[("station main thread: runner tick, the rest", RUNNER)] = max(
+                seconds - metered.cpu, 0.0
             )
         elif thread.name.startswith(("ur-driver", "modbus-drivers")):
             found.seconds[(f"station thread {thread.name}", DEVICE_LAYER)] = seconds

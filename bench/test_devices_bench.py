@@ -23,7 +23,7 @@ def test_a_short_device_benchmark_reports_every_row_with_sane_numbers() -> None:
     assert {"ur_rtde child r1 (process)", "ur_rtde child r2 (process)"} <= {
         what for what, _ in loop.cpu
     }
-    assert all(math.isfinite(p) and p >= 0 for p in loop.cpu.values())
+    assert all(math.isfinite(p) and p >= 0 for p in loop.cpu.values()), loop.cpu
     text = report(measured, 2.0, 2)
     for row in ("command to motion, UR", "command to coil, Modbus", "period between round starts"):
         assert re.search(rf"\| {re.escape(row)}.*\| \d+ \| [\d.]+ \|", text), row

@@ -62,7 +62,8 @@ def play(name: str, block: int, directory: Path) -> tuple[list[Event], str]:
 def played(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[list[Event], str]]:
     directory = tmp_path_factory.mktemp("devices")
     taken: set[int] = set()
-    blocks = {name: free_block(range(40, 250), taken) for name in EXPERIMENTS}
+    # blocks 40-89: tests/test_serve_devices.py takes 90-119, test_station_devices 120-199
+    blocks = {name: free_block(range(40, 90), taken) for name in EXPERIMENTS}
     with ThreadPoolExecutor(PARALLEL) as pool:
         runs = {name: pool.submit(play, name, blocks[name], directory) for name in EXPERIMENTS}
         return {name: run.result() for name, run in runs.items()}

@@ -55,7 +55,7 @@ class Running:
 @pytest.fixture(scope="module")
 def running() -> Iterator[Running]:
     station = load_station(MODEL.read_text(), str(MODEL))
-    text = on_block(DEVICES.read_text(), free_block(range(120, 250)))
+    text = on_block(DEVICES.read_text(), free_block(range(120, 200)))  # bench/devices.py: 200+
     devices = load_devices(text, "demo.devices.yaml", station)
     start = start_values(station, {})
     with emulate(station, devices, start) as emulated:
