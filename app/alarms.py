@@ -119,8 +119,7 @@ def conditions(
         add(f"intention:{name}", Priority.HIGH, f"{words.intention(name)}: {what}{waiting}")
     # an operation in error matters while production needs the station: once no intention is
     # executing it waits, harmless, until the background check releases it
-    busy = (IntentionState.EXECUTING, IntentionState.ERROR)
-    if any(current in busy for current in state.intentions.values()):
+    if state.busy_intentions():
         for name in sorted(state.operations_in(OperationState.ERROR)):
             add(
                 f"operation:{name}",

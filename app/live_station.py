@@ -306,7 +306,7 @@ class LiveStation:
         acting: list[_Request],
     ) -> None:
         """The round's tick and commit; then its requests are answered and pages told."""
-        busy = self._busy_intentions()
+        busy = set(self.state.busy_intentions())
         result = self.cycle.step(now, [request.payload for request in acting])
         answers += [
             (request, Acted(reply, result.events))
@@ -478,18 +478,10 @@ class LiveStation:
         entries.append(records.alarm_entry(done))
         return done
 
-    def _busy_intentions(self) -> set[str]:
-        """The intentions production is busy with: executing, or in error."""
-        state = self.state
-        return {
-            *state.intentions_in(IntentionState.EXECUTING),
-            *state.intentions_in(IntentionState.ERROR),
-        }
-
     def _run_over(self, busy: set[str]) -> str:
         """Why the run ended this round ("" if it did not): the intentions it was busy with
         finished or were cancelled, and none is executing or in error now."""
-        if self._busy_intentions():
+        if self.state.busy_intentions():
             return ""
         words = self.model.words
         finished = sorted(
@@ -504,13 +496,10 @@ class LiveStation:
         """Why this round began a new run on an idle station ("" if it did not): a person
         started an intention, and it left its initial or finished state (its precondition
         held)."""
-        begun = (IntentionState.EXECUTING, IntentionState.ERROR)
+        begun = self.state.busy_intentions()
         for request in acting:
             action = request.payload
-            if (
-                isinstance(action, StartIntention)
-                and self.state.intentions.get(action.name) in begun
-            ):
+            if isinstance(action, StartIntention) and action.name in begun:
                 intention = self.model.words.intention(action.name)
                 return f"{action.user} started {intention} on an idle station"
         return ""

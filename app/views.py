@@ -84,7 +84,7 @@ def station_activity(view: StationView) -> StationActivity:
     """The words of the "nothing for you" card: idle, assembling (and what), or complete."""
     words = view.model.words
     intentions = view.state.intentions
-    running = _running(view)
+    running = view.state.busy_intentions()
     if running:
         doing = _executing(view)
         what = f" ({'; '.join(doing)})" if doing else ""
@@ -102,16 +102,10 @@ def station_activity(view: StationView) -> StationActivity:
     )
 
 
-def _running(view: StationView) -> list[str]:
-    """The intentions being worked on: executing, or in error waiting for a way out."""
-    working = (IntentionState.EXECUTING, IntentionState.ERROR)
-    return [n for n, s in view.state.intentions.items() if s in working]
-
-
 def _cancelled(view: StationView) -> bool:
     """Nothing is being worked on, and the last intention to stop was stopped by a person
     (back to initial from executing or error): a watch card left over is not a task."""
-    if _running(view):
+    if view.state.busy_intentions():
         return False
     for e in reversed(view.events):
         if e.kind is EventKind.INTENTION:
@@ -136,7 +130,7 @@ def _command_cards(view: StationView) -> list[TaskCard]:
     words = view.model.words
     if _cancelled(view):  # the card's intention was cancelled by the engineer: nothing to do
         return cards
-    running = _running(view)
+    running = view.state.busy_intentions()
     for person, watch in view.model.station.watches:
         card = values.get(watch.card)
         if card in (None, IDLE) or values.get(watch.done) != IDLE:

@@ -162,23 +162,16 @@ def disable(
     if name == caller.name:
         raise HTTPException(409, "you cannot disable yourself")
     subject = "disabled" if disabled else "enabled"
+    now = srv.live.wall()
     detail: dict[str, object] = {"name": name}
 
     def change(session: Session) -> None:
-        user = user_named(session, name)
-        if user is None:
-            raise HTTPException(404, f"there is no user '{name}'")
+        user = _named(session, name)
         user.disabled = disabled
         if disabled:  # whatever they had signed in with ends now
-            detail["sessions_ended"] = user_sessions.revoke_all(
-                session, user.id, "disabled", srv.live.wall()
-            )
+            detail["sessions_ended"] = user_sessions.revoke_all(session, user.id, "disabled", now)
 
-    entry = AuditEntry("user", subject, caller.name, "", detail)
-    try:
-        audit.write(srv.store, srv.live.name, [entry], srv.live.wall(), also=change)
-    except TamperedUser as exc:
-        raise HTTPException(409, str(exc)) from None
+    _write(srv, AuditEntry("user", subject, caller.name, "", detail), now, change)
     return _page(request, caller, message=f"{name} is {subject}")
 
 

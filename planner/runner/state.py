@@ -190,6 +190,12 @@ class RunnerState:
     def intentions_in(self, state: IntentionState) -> list[str]:
         return [name for name, current in self.intentions.items() if current == state]
 
+    def busy_intentions(self) -> list[str]:
+        """The intentions production is busy with: executing, or in error waiting for a way
+        out (a run lasts while there is one; pages and alarms read it)."""
+        busy = (IntentionState.EXECUTING, IntentionState.ERROR)
+        return [name for name, current in self.intentions.items() if current in busy]
+
     def operations_in(self, state: OperationState) -> list[str]:
         return [name for name, current in self.operations.items() if current == state]
 
