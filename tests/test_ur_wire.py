@@ -240,3 +240,22 @@ def test_the_driver_is_ready_only_once_a_reading_shows_the_program_running() -> 
     assert not driver.available and "control program" in driver.status().error
     driver._receive(("reading", sample(stamp=1.1, safety_bits=1, runtime_state=2)))
     assert driver.available and driver.status().error == ""
+
+
+def test_the_controller_moves_its_arm_in_whole_cycles_however_it_is_ticked() -> None:
+    """The arm is stepped at the controller's own period, not by the time between ticks: a
+    stalled emulator catches up in whole cycles (at most 0.1 s of motion) and the move
+    arrives on its goal without passing it."""
+    c = running_controller()
+    command(c, 1, [1.8, 0, 0, 0, 0, 0, 1.05, 1.4], flag=1)  # async moveJ
+    c.tick(c.clock + 0.008)
+    command(c, 0, [])
+    stalls = [0.003, 0.008, 0.3, 0.008, 0.05, 0.008, 0.008, 0.1]
+    k = 0
+    while not c.arm.steady:
+        before = c.arm.q[0]
+        c.tick(c.clock + stalls[k % len(stalls)])
+        k += 1
+        assert before <= c.arm.q[0] <= 1.8
+        assert c.arm.q[0] - before <= 1.05 * 0.1 + 1e-9  # no more than 0.1 s of motion
+    assert c.arm.q[0] == 1.8

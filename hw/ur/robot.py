@@ -47,6 +47,9 @@ RUNNING_JOINT = 253
 POWER_DELAY = 0.3
 """Seconds from `power on` to IDLE and from `brake release` to RUNNING."""
 CYCLE = 0.008
+"""Seconds per controller cycle of a CB3 (125 Hz); an e-series (version 5) runs at 500 Hz."""
+LOST = 0.1
+"""Seconds of motion at most per tick: time the emulator did not run beyond this is lost."""
 
 
 @dataclass
@@ -81,6 +84,8 @@ class Controller:
     clock: float = 0.0
     pending: list[tuple[float, RobotMode]] = field(default_factory=list)
     """Mode changes under way: (when, mode), in time order."""
+    unstepped: float = 0.0
+    """Seconds the arm has not yet been stepped: it moves in whole cycles only."""
 
     # -- the robot's life cycle -----------------------------------------------------------------
 
@@ -207,7 +212,21 @@ class Controller:
                 self.stop_program(outcome)
         if self.stalled and self.arm.target is not None:
             self.arm.stop(max(self.arm.acceleration, default=1.0) or 1.0)
-        self.arm.step(min(dt, 0.1))
+        self.step_arm(dt)
+
+    @property
+    def period(self) -> float:
+        return CYCLE / 4 if self.version[0] >= 5 else CYCLE
+
+    def step_arm(self, dt: float) -> None:
+        """Moves the arm by `dt` in whole controller cycles, as a controller does, however
+        irregularly the emulator itself gets to run: the arm's motion profile is exact only
+        for a fixed step (a stalled emulator that then stepped 0.1 s overshot a target)."""
+        self.unstepped = min(self.unstepped + max(dt, 0.0), LOST)
+        period = self.period
+        while self.unstepped >= period * (1 - 1e-6):
+            self.arm.step(period)
+            self.unstepped = max(self.unstepped - period, 0.0)
 
     # -- what RTDE reads ------------------------------------------------------------------------
 
