@@ -52,10 +52,19 @@ def play(name: str, block: int, directory: Path) -> tuple[list[Event], str]:
     devices.write_text(on_block(DEVICES.read_text(), block))
     command = [sys.executable, "-m", "app.cli", "run", str(MODEL), "--json"]
     command += ["--scenario", str(SCENARIOS / f"{name}.yaml"), "--devices", str(devices)]
-    done = subprocess.run(
-        command, capture_output=True, text=True, timeout=TIME_LIMIT, cwd=ROOT, check=False
-    )
-    return [Event.from_json(line) for line in done.stdout.splitlines() if line], done.stderr
+    try:
+        done = subprocess.run(
+            command, capture_output=True, text=True, timeout=TIME_LIMIT, cwd=ROOT, check=False
+        )
+        out, errors = done.stdout, done.stderr
+    except subprocess.TimeoutExpired as late:  # the test shows how far it got, and why
+        out, errors = _text(late.stdout), _text(late.stderr) + f"\n{name}: {late}"
+        out = out[: out.rfind("\n") + 1]  # a line cut off by the kill is not an event
+    return [Event.from_json(line) for line in out.splitlines() if line], errors
+
+
+def _text(captured: bytes | str | None) -> str:
+    return captured.decode(errors="replace") if isinstance(captured, bytes) else captured or ""
 
 
 @pytest.fixture(scope="module")

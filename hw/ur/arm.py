@@ -5,11 +5,12 @@ target is set, each joint's speed and acceleration limits are the commanded ones
 share of the longest distance, so every joint runs the same trapezoid shape in the same time.
 Each step a joint accelerates (within its acceleration limit) toward the fastest speed from
 which it can still brake to its target in discrete steps of `dt`, capped at its speed limit;
-it lands exactly on the target once it is slow enough to stop within one step.  With steps of
-varying length a joint braked for short steps could pass its target in a long one; it stops on
-the target instead (a controller steps at a fixed period: see `Controller.step_arm`).  A new target
-interrupts the old one from the current velocity; `stop(deceleration)` brakes every joint to
-rest where it is.  Nothing here reads a clock: time is the `dt` passed in.
+it lands exactly on the target once it is slow enough to stop within one step.  The profile
+holds for steps of one length only: a joint braked for short steps can pass its target in a
+long one, so the emulated controller steps its arm at its own fixed period
+(`Controller.step_arm`).  A new target interrupts the old one from the current velocity;
+`stop(deceleration)` brakes every joint to rest where it is.  Nothing here reads a clock:
+time is the `dt` passed in.
 """
 
 from __future__ import annotations
@@ -128,9 +129,5 @@ class Arm:
             min(limit_v, _brake_speed(room, limit_a, dt), abs(distance) / dt), distance
         )
         new = v + max(-step_a, min(step_a, wanted - v))
-        if new * distance >= 0 and abs(new * dt) > abs(distance) + ARRIVED:
-            # a step longer than the ones braked for would pass the target: stop on it
-            self.q[j], self.qd[j] = goal, 0.0
-            return
         self.q[j] += new * dt
         self.qd[j] = new
