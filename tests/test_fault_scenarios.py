@@ -246,3 +246,24 @@ def test_a_stop_asks_the_planners_nothing_while_nothing_changes(
     assert events[-1].kind is EventKind.STOPPED
     last_plan = max(e.time for e in events if e.kind is EventKind.PLAN)
     assert [a for a in asked if a[0] > last_plan + 2] == []
+
+
+def test_robots_do_not_take_turns_for_ever_after_a_camera_dropout(
+    plays: dict[str, tuple[Scenario, list[Event]]],
+) -> None:
+    """A robot that made way for the other made its camera forget the tool it found; planned
+    again, the work went back to it, and the other's camera forgot in turn.  The plan now
+    looks again where it needs to, so each locating operation succeeds a bounded number of
+    times."""
+    _, events = plays["robots_take_turns_after_camera_dropout"]
+    assert events[-1].kind is EventKind.DONE
+    located = [
+        e.subject
+        for e in events
+        if e.kind is EventKind.OPERATION
+        and e.subject.startswith("locate_tool_")
+        and e.detail["why"] == "goal reached"
+    ]
+    assert len(located) <= 4, located
+    repairs = [e for e in events if e.kind is EventKind.REPAIRED and e.detail.get("inserted")]
+    assert repairs, "the plan was not mended where the camera forgot"

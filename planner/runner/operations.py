@@ -93,6 +93,7 @@ def operation_plan_reaches(tick: Tick, active: list[str]) -> bool:
     index = tick.index
     values = predicted(tick)
     skipped = []
+    inserted: list[tuple[int, list[str]]] = []
     for k, name in enumerate(plan.steps):
         if k in plan.started:
             continue
@@ -103,21 +104,89 @@ def operation_plan_reaches(tick: Tick, active: list[str]) -> bool:
             if index.measures_only[name] and all(values[t] == v for t, v in effects.items()):
                 skipped.append(k)
                 continue
-            return False
+            before = mend_before(tick, name, values)
+            if before is None:
+                return False
+            inserted.append((k, before))
+            for extra in before:
+                values.update(assigned(index.operations[extra].effects, values))
+            effects = assigned(index.operations[name].effects, values)
         values.update(effects)
     appended = mend_the_end(tick, active, values)
-    if appended is None:
+    growth = sum(len(before) for _, before in inserted) + len(appended or ())
+    if appended is None or len(plan.steps) + growth > tick.config.max_steps:
         return False
     for k in skipped:
         plan.started.add(k)
         plan.finished.add(k)
+    for k, before in reversed(inserted):
+        insert_before(plan, k, before)
     for name in appended:
         plan.steps += (name,)
         plan.after += (frozenset(range(len(plan.steps) - 1)),)
-    if skipped or appended:
+    if skipped or appended or inserted:
         skipped_names = [plan.steps[k] for k in skipped]
-        tick.emit(EventKind.REPAIRED, "OP", skipped=skipped_names, appended=appended)
+        if inserted:
+            added = [name for _, before in inserted for name in before]
+            tick.emit(
+                EventKind.REPAIRED, "OP", skipped=skipped_names, appended=appended, inserted=added
+            )
+        else:
+            tick.emit(EventKind.REPAIRED, "OP", skipped=skipped_names, appended=appended)
     return True
+
+
+def mend_before(tick: Tick, name: str, values: dict[str, Value]) -> list[str] | None:
+    """At most two operations that change measurements only and make `name`'s precondition
+    hold again at `values` (None when there are none).
+
+    A robot that made way for another undid a measurement a later step needs (a camera
+    forgets the tool it found once its robot leaves the scan pose).  Planning the
+    operations again then picks among equally short plans, and the one it picks may undo
+    the other robot's work in turn: the two robots take turns for ever.  Doing the
+    measuring operation again where it is needed keeps the plan the station committed to.
+    """
+    index = tick.index
+    wanted = index.operation_precondition[name]
+    candidates = [
+        n
+        for n in index.operations
+        if index.measures_only[n] and n != name and tick.state.operations[n] != OperationState.ERROR
+    ]
+    frontier: list[tuple[list[str], dict[str, Value]]] = [([], values)]
+    for _ in range(2):
+        reached = []
+        for done, at in frontier:
+            for n in candidates:
+                if n in done or not index.operation_precondition[n](index.as_state(at)):
+                    continue
+                after = at | assigned(index.operations[n].effects, at)
+                if after == at:
+                    continue
+                if wanted(index.as_state(after)):
+                    return [*done, n]
+                reached.append(([*done, n], after))
+        frontier = reached
+    return None
+
+
+def insert_before(plan: OperationPlan, k: int, names: list[str]) -> None:
+    """Puts `names` into `plan` before step `k`, in order: each waits for every step before
+    it, and the steps from `k` on wait for them."""
+    n = len(names)
+
+    def shift(indices: frozenset[int]) -> frozenset[int]:
+        return frozenset(i if i < k else i + n for i in indices)
+
+    extra = frozenset(range(k, k + n))
+    plan.after = (
+        tuple(shift(a) for a in plan.after[:k])
+        + tuple(frozenset(range(k + j)) for j in range(n))
+        + tuple(shift(a) | extra for a in plan.after[k:])
+    )
+    plan.steps = plan.steps[:k] + tuple(names) + plan.steps[k:]
+    plan.started = set(shift(frozenset(plan.started)))
+    plan.finished = set(shift(frozenset(plan.finished)))
 
 
 def mend_the_end(tick: Tick, active: list[str], values: dict[str, Value]) -> list[str] | None:
