@@ -18,6 +18,9 @@ def test_auditor_filters_the_log_and_exports_csv(served: RunningStation, desktop
     from planner.runner import StartIntention
 
     served.live.act(StartIntention(user="engineer", name="assemble_engine")).result(10)
+    # leave the engineer's live page first: signed out under it, its own updates send it to
+    # the login page, and that navigation would race the one below
+    page.goto("about:blank")
     page.context.clear_cookies()
     sign_in(page, served, "auditor")
     page.wait_for_url("**/audit")  # an auditor's home is the log
