@@ -267,3 +267,21 @@ def test_robots_do_not_take_turns_for_ever_after_a_camera_dropout(
     assert len(located) <= 4, located
     repairs = [e for e in events if e.kind is EventKind.REPAIRED and e.detail.get("inserted")]
     assert repairs, "the plan was not mended where the camera forgot"
+
+
+def test_a_way_out_is_planned_once_the_silent_robot_answers_again(
+    plays: dict[str, tuple[Scenario, list[Event]]],
+) -> None:
+    """No maintenance plan exists while both robots are silent; the station must not wait
+    for r2 for ever once r1, which can do the work, answers again."""
+    _, events = plays["double_r1_silent_when_r2_holds_the_nutrunner"]
+    [back] = [e.time for e in events if e.kind is EventKind.AVAILABLE and e.subject == "r1"]
+    maintenance = [
+        e for e in events if e.kind is EventKind.PLAN and e.detail["reason"] == "maintenance"
+    ]
+    assert any(e.detail["status"] == "unreachable" and e.time < back for e in maintenance)
+    found = [e for e in maintenance if e.detail["status"] == "found"]
+    assert found and found[0].time == back, [(e.time, e.detail["status"]) for e in maintenance]
+    done = [e.detail["transition"] for e in events if e.kind is EventKind.OPERATOR]
+    assert done == ["operator.move_r2_home", "operator.hang_nr_from_r2"]
+    assert events[-1].kind is EventKind.DONE

@@ -9,13 +9,16 @@ Each operation in error that has retries left is planned for alone; if its goal 
 reached it goes back to initial, or, when a late effect took back the failure that put it
 in error and nothing else executes, it goes on where it was (`retries.late_effect`).
 Each intention in error is planned for alone by the operation planner (without the
-operations still in error); if its goal can be reached it executes again.  An
+operations still in error); if its goal can be reached it executes again.  Intentions
+still in error without a maintenance plan are given one if one exists now (a resource that
+was silent when the error came, and answers again, may be the way out).  An
 operation's error does not outlive the intentions that needed it.  Nothing is checked
 during forbidden-state recovery.
 """
 
 from __future__ import annotations
 
+from planner.runner.maintenance import plan_maintenance
 from planner.runner.operations import predicted
 from planner.runner.queries import ask, disabled, transition_query
 from planner.runner.retries import forget_failures
@@ -39,6 +42,8 @@ def background_check(tick: Tick) -> None:
         return  # the same questions would get the same answers: a stop stays quiet
     recheck_operations(tick)
     recheck_intentions(tick)
+    if state.intentions_in(IntentionState.ERROR) and state.maintenance is None:
+        plan_maintenance(tick)  # what planning may use changed: a way out may exist now
     state.rechecked = what_the_check_reads(tick)
 
 
