@@ -9,9 +9,9 @@ Each operation in error that has retries left is planned for alone; if its goal 
 reached it goes back to initial, or, when a late effect took back the failure that put it
 in error and nothing else executes, it goes on where it was (`retries.late_effect`).
 Each intention in error is planned for alone by the operation planner (without the
-operations still in error); if its goal can be reached it executes again.  Intentions
-still in error without a maintenance plan are given one if one exists now (a resource that
-was silent when the error came, and answers again, may be the way out).  An
+operations still in error); if its goal can be reached it executes again.  When a
+resource answers again, intentions still in error without a maintenance plan are given one
+if one exists now (the resource may be the way out that was missing when the error came).  An
 operation's error does not outlive the intentions that needed it.  Nothing is checked
 during forbidden-state recovery.
 """
@@ -42,8 +42,9 @@ def background_check(tick: Tick) -> None:
         return  # the same questions would get the same answers: a stop stays quiet
     recheck_operations(tick)
     recheck_intentions(tick)
-    if state.intentions_in(IntentionState.ERROR) and state.maintenance is None:
-        plan_maintenance(tick)  # what planning may use changed: a way out may exist now
+    answers_again = tick.availability_changed - state.unavailable
+    if answers_again and state.intentions_in(IntentionState.ERROR) and state.maintenance is None:
+        plan_maintenance(tick)  # a resource that answers again may be the way out
     state.rechecked = what_the_check_reads(tick)
 
 
