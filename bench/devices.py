@@ -502,8 +502,10 @@ def run_loop(bench: Bench, seconds: float, worker: PlanningWorker) -> LoopResult
         time.sleep(max(0.0, delay))
     window = time.monotonic() - began
     after = usage(bench, metered, planning_pid)
+    # the main thread's "rest" is a difference of counters of different resolution (10 ms
+    # clock ticks against thread_time()): its change over the window may come out below zero
     cpu = {
-        key: 100.0 * (after.seconds[key] - before.seconds.get(key, 0.0)) / window
+        key: 100.0 * max(after.seconds[key] - before.seconds.get(key, 0.0), 0.0) / window
         for key in after.seconds
     }
     threads = {}
