@@ -26,10 +26,10 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, replace
 from enum import StrEnum
 
-from planner.expressions import variables_of
+from planner.model.expressions import variables_of
 from planner.runner import IntentionState, OperationState, Runner, RunnerState
 from planner.runner.waiting import Who, waiting_for
-from planner.wording import Wording
+from planner.words import Wording
 
 SHELVE_LIMIT = 8 * 60.0  # minutes: a shelved alarm comes back within a shift
 
@@ -72,7 +72,7 @@ def conditions(
     runner: Runner, state: RunnerState, words: Wording | None = None
 ) -> dict[str, Condition]:
     """The alarm conditions of a runner state, in people's words (`words`, the active
-    model's `planner.wording.Wording`; built from the runner's station when not given): an
+    model's `planner.words.Wording`; built from the runner's station when not given): an
     operator reads them, so no model identifier appears (the key keeps the name)."""
     words = words or Wording(runner.station)
     out: dict[str, Condition] = {}

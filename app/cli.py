@@ -21,13 +21,14 @@ from typing import Any, NoReturn
 
 from app import cli_station
 from app.cli_common import UsageError, planner_for, read_station, remember_order
-from planner.expressions import Expr, ExpressionError, parse_expr
-from planner.loading import Diagnostic, ModelError, closest, scope_for
-from planner.model import Model, SourceLocation, TransitionKind, VariableKind
-from planner.planning import PlanQuery, PlanResult, PlanStatus, State
+from planner.bdd.synthesis import COUNTABLE_BITS
+from planner.model.expression_text import parse_expr
+from planner.model.expressions import Expr, ExpressionError
+from planner.model.flat import Model, SourceLocation, TransitionKind, VariableKind
+from planner.model.station import Station
+from planner.planning.query import PlanQuery, PlanResult, PlanStatus, State
+from planner.reading.yaml_reader import Diagnostic, ModelError, closest, scope_for
 from planner.runner.queries import QueryObserver
-from planner.station import Station
-from planner.synthesis import COUNTABLE_BITS
 
 
 def main(argv: Sequence[str] | None = None, *, observer: QueryObserver | None = None) -> int:

@@ -8,8 +8,9 @@ from pathlib import Path
 from typing import Any
 
 from hw.device_file import DeviceFile
-from planner.model import Model
-from planner.station import Station, load_station
+from planner.model.flat import Model
+from planner.model.station import Station
+from planner.reading import load_station
 
 
 class UsageError(Exception):

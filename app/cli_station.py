@@ -17,9 +17,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from app.cli_common import UsageError, device_file, planner_for, read_station, remember_order
+from planner.model.station import Station
 from planner.runner import Event, EventKind
 from planner.runner.queries import QueryObserver
-from planner.station import Station
 
 if TYPE_CHECKING:
     from app.live_station import DeviceSetup
@@ -174,7 +174,7 @@ def _serve_devices(
 
 def run(args: argparse.Namespace, observer: QueryObserver | None = None) -> int:
     from app.scenario import Planners, Scenario, ScenarioError, load_scenario, play
-    from planner.operation_planner import OperationPlanner
+    from planner.planning.operation_planner import OperationPlanner
 
     if args.speed < 0:
         raise UsageError("--speed must be 0 or more")

@@ -13,8 +13,8 @@ from app.run_history import run_history
 from app.runs import Outcome
 from app.store.db import Store
 from app.store.tables import AuditRecord
-from planner.station import Station
-from planner.wording import Wording, sentence
+from planner.model.station import Station
+from planner.words import Wording, sentence
 
 # the records of a person's own taps on the task cards (app.live_station, planner.runner.people)
 _TASKS = {

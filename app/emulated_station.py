@@ -18,8 +18,8 @@ from hw.device_file import DeviceFile, load_devices
 from hw.emulation.launch import Emulators, launch
 from hw.emulation.world import EmulatedWorld
 from hw.station_devices import StationDevices
-from planner.expressions import Value
-from planner.station import Station
+from planner.model.expressions import Value
+from planner.model.station import Station
 
 
 def read_device_file(path: str, station: Station) -> DeviceFile:

@@ -39,7 +39,8 @@ from hw.devices import Devices, Restorable
 from hw.faults import Fault, FaultInjection
 from hw.sim import SimulatedWorld
 from hw.station_devices import StationDevices
-from planner.expressions import Value
+from planner.model.expressions import Value
+from planner.model.station import Station
 from planner.runner import (
     Action,
     Event,
@@ -53,7 +54,6 @@ from planner.runner import (
     snapshot,
 )
 from planner.runner.carry_over import carry_over
-from planner.station import Station
 
 log = logging.getLogger(__name__)
 

@@ -15,8 +15,9 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
 
 from hw.faults import Fault, FaultKind
-from planner.expressions import Expr, Value, conjunction, conjuncts, format_value
-from planner.model import Model, TransitionKind, VariableKind
+from planner.model.expressions import Expr, Value, conjunction, conjuncts, format_value
+from planner.model.flat import Model, TransitionKind, VariableKind
+from planner.model.station import Station
 from planner.runner import (
     IntentionState,
     OperationPlan,
@@ -24,8 +25,7 @@ from planner.runner import (
     RunnerState,
     TransitionPlan,
 )
-from planner.station import Station
-from planner.wording import Wording, sentence
+from planner.words import Wording, sentence
 
 # the drawing's grid, in SVG user units (= CSS pixels: the SVG is drawn at its own size)
 NODE_WIDTH = 208
@@ -389,7 +389,7 @@ class StateRow:
     failures: int = 0
     armed: bool = False  # intention: starts by itself when its precondition holds
     resetting: bool = False  # operation: being reset in restart mode
-    label: str = ""  # its name for people (planner.wording); the name itself if not given
+    label: str = ""  # its name for people (planner.words); the name itself if not given
     waits_for: str = ""  # intention, idle: the parts of its precondition that do not hold
 
     @property

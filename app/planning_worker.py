@@ -26,11 +26,11 @@ from pathlib import Path
 from typing import Any
 
 from app import supervisor_cache
-from planner.operation_planner import OperationPlanner
-from planner.planning import PlanQuery, PlanResult, PlanStatus
+from planner.planning.operation_planner import OperationPlanner
+from planner.planning.query import PlanQuery, PlanResult, PlanStatus
+from planner.reading import load_station
 from planner.runner import PlanLevel
 from planner.runner.answers import Answer
-from planner.station import load_station
 
 log = logging.getLogger(__name__)
 

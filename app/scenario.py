@@ -19,9 +19,12 @@ from app.station_cycle import ScheduledAction, ScheduledFault, StationCycle, due
 from hw.devices import Devices
 from hw.faults import FAULTS, Fault, FaultKind
 from hw.sim import SimulatedWorld
-from planner.expressions import Expr, Value, parse_expr
-from planner.loading import scope_for
-from planner.operation_planner import OperationPlanner
+from planner.model.expression_text import parse_expr
+from planner.model.expressions import Expr, Value
+from planner.model.station import Station
+from planner.planning.operation_planner import OperationPlanner
+from planner.planning.transition_planner import TransitionPlanner
+from planner.reading.yaml_reader import scope_for
 from planner.runner import (
     Action,
     Approve,
@@ -44,8 +47,6 @@ from planner.runner import (
 from planner.runner.answers import Delayed
 from planner.runner.queries import QueryObserver
 from planner.runner.waiting import waiting_for
-from planner.station import Station
-from planner.transition_planner import TransitionPlanner
 
 _KEYS = (
     "description",

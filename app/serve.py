@@ -38,8 +38,8 @@ from hw.device_file import DeviceFile
 from hw.devices import Devices
 from hw.emulation.world import EmulatedWorld
 from hw.station_devices import StationDevices
-from planner.expressions import Value
-from planner.station import Station
+from planner.model.expressions import Value
+from planner.model.station import Station
 
 log = logging.getLogger(__name__)
 SCENARIOS = ROOT / "models" / "scenarios"

@@ -19,8 +19,8 @@ from dataclasses import dataclass, field
 
 from hw.devices import Devices, ModelSimulation
 from hw.faults import Fault, FaultInjection
-from planner.expressions import Expr, Value
-from planner.model import VariableKind
+from planner.model.expressions import Expr, Value
+from planner.model.flat import VariableKind
 from planner.runner import (
     Action,
     Event,

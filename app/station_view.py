@@ -12,11 +12,12 @@ from pathlib import Path
 from app import supervisor_cache
 from app.alarms import Alarm
 from app.store.tables import ModelVersion
-from planner.operation_planner import OperationPlanner
+from planner.model.station import Station
+from planner.planning.operation_planner import OperationPlanner
+from planner.planning.transition_planner import TransitionPlanner
+from planner.reading import load_station
 from planner.runner import Event, Runner, RunnerState
-from planner.station import Station, load_station
-from planner.transition_planner import TransitionPlanner
-from planner.wording import Wording
+from planner.words import Wording
 
 
 @dataclass(frozen=True)
@@ -30,7 +31,7 @@ class ActiveModel:
     transition_planner: TransitionPlanner
     operation_planner: OperationPlanner
     cache: Path | None = None  # where its supervisor is saved (a planning worker loads it)
-    # what pages call each of its names, computed once per version (planner.wording)
+    # what pages call each of its names, computed once per version (planner.words)
     words: Wording = field(init=False, compare=False, repr=False)
 
     def __post_init__(self) -> None:

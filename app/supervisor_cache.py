@@ -4,7 +4,7 @@ Synthesis (the bad states of the specifications) and the sift after it are the s
 building a planner (half a second on the demo station, more on large models) and depend only
 on the model's text.  The cache keeps, per model text, the BDD variable order and checksums
 (JSON), the bad states (CUDD's DDDMP format) and the states bad for each specification
-alone (`planner.bdd_data`'s JSON, which holds many named roots and reads fast), keyed by a
+alone (`planner.bdd.data`'s JSON, which holds many named roots and reads fast), keyed by a
 SHA-256 of the text, the `dd` version and this format's number.  Once the first plan has
 chosen the order for search (`TransitionPlanner.tuned`), `remember_order` saves that order
 instead.  Anything missing, unreadable or inconsistent falls back to synthesis; failing to
@@ -19,10 +19,10 @@ import os
 import tempfile
 from pathlib import Path
 
-from planner.bdd_data import from_data, to_data
-from planner.model import Model
-from planner.symbolic import Function, SymbolicModel
-from planner.transition_planner import TransitionPlanner
+from planner.bdd.data import from_data, to_data
+from planner.bdd.symbolic import Function, SymbolicModel
+from planner.model.flat import Model
+from planner.planning.transition_planner import TransitionPlanner
 
 FORMAT = 3  # 2: the states bad for each specification are saved too; 3: as bdd_data
 

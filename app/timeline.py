@@ -27,9 +27,9 @@ from enum import StrEnum
 from typing import Any
 
 from app.runs import Happening, Run, seconds, within
-from planner.display_keys import humanised
-from planner.station import Station
-from planner.wording import Wording
+from planner.model.station import Station
+from planner.reading.display import humanised
+from planner.words import Wording
 
 # the event kinds a timeline reads (and `app.runs` needs), for the audit log's query
 # fmt: off

@@ -9,11 +9,11 @@ from dataclasses import dataclass
 from enum import StrEnum
 
 from app.station_view import StationView
-from planner.model import TransitionKind
+from planner.model.flat import TransitionKind
+from planner.model.watch import IDLE
 from planner.runner import Event, EventKind, IntentionState, OperationState, TransitionPlan
-from planner.watch import IDLE
-from planner.wording import Wording
-from planner.wording import sentence as sentence
+from planner.words import Wording
+from planner.words import sentence as sentence
 
 
 class CardKind(StrEnum):
@@ -124,7 +124,7 @@ def _executing(view: StationView) -> list[str]:
 
 
 def _command_cards(view: StationView) -> list[TaskCard]:
-    """The card each person's watch shows (planner.watch), until the person taps Done."""
+    """The card each person's watch shows (planner.model.watch), until the person taps Done."""
     cards: list[TaskCard] = []
     values = view.state.values
     words = view.model.words

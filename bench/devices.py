@@ -55,12 +55,13 @@ from hw.emulation.control import ControlError
 from hw.link import LinkStatus
 from hw.ur import driver_child
 from hw.ur.emulated import free_block, on_block
-from planner.expressions import Value
-from planner.model import VariableKind
-from planner.operation_planner import OperationPlanner
+from planner.model.expressions import Value
+from planner.model.flat import VariableKind
+from planner.model.station import Station
+from planner.planning.operation_planner import OperationPlanner
+from planner.planning.transition_planner import TransitionPlanner
+from planner.reading import load_station
 from planner.runner import Event, EventKind, Runner, RunnerConfig, StartIntention
-from planner.station import Station, load_station
-from planner.transition_planner import TransitionPlanner
 
 ROOT = Path(__file__).resolve().parent.parent
 MODEL = ROOT / "models" / "demo_station.yaml"

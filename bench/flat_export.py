@@ -1,7 +1,7 @@
 """A compiled station model as the flat dict of DESIGN.md section 8, for the PDDL export.
 
-`planner.station.load_station(text, path).model` compiles any model, station form included
-(resources, abilities, operations), to a flat `planner.model.Model`; :func:`flat_dict` writes
+`planner.reading.load_station(text, path).model` compiles any model, station form included
+(resources, abilities, operations), to a flat `planner.model.flat.Model`; :func:`flat_dict` writes
 that back as the plain ``variables`` / ``transitions`` / ``specifications`` lists that
 `bench.pddl_export` reads, so Fast Downward and SymK can plan on the demo station and on the
 generated cells.  Only the model's public values are used (names, domains, kinds, guards and
@@ -14,10 +14,12 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
-from planner.expressions import format_expr, format_value, parse_expr
-from planner.loading import scope_for
-from planner.model import Model
-from planner.station import Station, load_station
+from planner.model.expression_text import parse_expr
+from planner.model.expressions import format_expr, format_value
+from planner.model.flat import Model
+from planner.model.station import Station
+from planner.reading import load_station
+from planner.reading.yaml_reader import scope_for
 
 
 def flat_dict(model: Model, drop: Iterable[str] = ()) -> dict[str, Any]:

@@ -29,7 +29,7 @@ SCENARIOS += ("e9_torque_not_reached",)
 
 _CHILD = r"""
 import json, resource, sys, time, yaml
-from planner.transition_planner import TransitionPlanner
+from planner.planning.transition_planner import TransitionPlanner
 policy, workload = sys.argv[1], sys.argv[2]
 
 def with_policy(planner):
@@ -53,10 +53,10 @@ def with_policy(planner):
 
 if workload == "searches":
     from bench import family
-    from planner.expressions import parse_expr
-    from planner.loading import scope_for
-    from planner.planning import PlanQuery
-    from planner.station import load_station
+    from planner.model.expressions import parse_expr
+    from planner.reading.flat import scope_for
+    from planner.planning.query import PlanQuery
+    from planner.model.station import load_station
     cases = [(yaml.safe_dump(family.station(6, 2), sort_keys=False), family.goal(6))]
     cases.append((open("models/demo_station.yaml").read(), "bp1.state == tightened"))
     elapsed = 0.0
@@ -71,8 +71,8 @@ if workload == "searches":
         elapsed += time.process_time() - began
 else:
     from app.scenario import Planners, load_scenario, play
-    from planner.operation_planner import OperationPlanner
-    from planner.station import load_station
+    from planner.planning.operation_planner import OperationPlanner
+    from planner.model.station import load_station
     station = load_station(open("models/demo_station.yaml").read(), "demo.yaml")
     planners = Planners(with_policy(TransitionPlanner(station.model)), OperationPlanner(station))
     elapsed = 0.0

@@ -388,7 +388,7 @@ def play_scenarios(
     """Every scenario played `runs` times (once if it was cut off or failed), and how long
     the supervisor synthesis the plays start from took."""
     from app.scenario import load_scenario
-    from planner.station import load_station
+    from planner.reading import load_station
 
     station = load_station(model.read_text(), str(model))
     scenarios = [load_scenario(p.read_text(), str(p), station) for p in paths]
@@ -638,9 +638,9 @@ def drive(
 def build_cells(count: int, emit: Callable[[dict[str, Any]], None]) -> tuple[Any, Any]:
     """Station and planners for `count` cells, each stage's time emitted as it ends."""
     from app.scenario import Planners
-    from planner.operation_planner import OperationPlanner
-    from planner.station import load_station
-    from planner.transition_planner import TransitionPlanner
+    from planner.planning.operation_planner import OperationPlanner
+    from planner.planning.transition_planner import TransitionPlanner
+    from planner.reading import load_station
 
     started = time.perf_counter()
     station = load_station(cells.station_text(count), f"cells_{count}.yaml")
@@ -675,8 +675,8 @@ def child_ticks(count: int, ticks: int, idle: int) -> None:
 
 def child_synthesis(count: int) -> None:
     """Child process: `TransitionPlanner(model)`, with its stages timed as they end."""
-    import planner.transition_planner as tp_module
-    from planner.station import load_station
+    import planner.planning.transition_planner as tp_module
+    from planner.reading import load_station
 
     def emit(record: dict[str, Any]) -> None:
         print(json.dumps(record), flush=True)
@@ -969,9 +969,9 @@ def profile_ticks(transitions: int, ticks: int, idle: int, top: int = 15) -> Non
         run = drive(station, planners, names, ticks=ticks, idle=idle, cycle=True, profile=True)
     else:
         from app.scenario import Planners, load_scenario
-        from planner.operation_planner import OperationPlanner
-        from planner.station import load_station
-        from planner.transition_planner import TransitionPlanner
+        from planner.planning.operation_planner import OperationPlanner
+        from planner.planning.transition_planner import TransitionPlanner
+        from planner.reading import load_station
 
         station = load_station(DEMO.read_text(), str(DEMO))
         planners = Planners(TransitionPlanner(station.model), OperationPlanner(station))
@@ -1090,9 +1090,9 @@ def main() -> None:
         args.sizes = []
 
     from app.scenario import Planners
-    from planner.operation_planner import OperationPlanner
-    from planner.station import load_station
-    from planner.transition_planner import TransitionPlanner
+    from planner.planning.operation_planner import OperationPlanner
+    from planner.planning.transition_planner import TransitionPlanner
+    from planner.reading import load_station
 
     measured = revision()
     experiments = []

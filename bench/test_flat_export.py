@@ -10,7 +10,7 @@ import yaml
 from bench import cells, flat_export
 from bench.pddl_export import FlatModel, bfs_min_length, check_plan
 from bench.test_pddl_export import sp
-from planner.station import load_station
+from planner.reading import load_station
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE = ROOT / "models" / "examples" / "bolt_and_nutrunner.yaml"

@@ -24,7 +24,8 @@ from bench.runner import (
     recovery_scenarios,
     target,
 )
-from planner.station import Station, load_station
+from planner.model.station import Station
+from planner.reading import load_station
 
 # a station small enough to synthesise in a blink: one bolt, placed and tightened
 ONE_BOLT = """\

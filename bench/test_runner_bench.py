@@ -8,10 +8,10 @@ from __future__ import annotations
 from app.scenario import Planners
 from bench import cells
 from bench.runner import drive, match_paper
-from planner.operation_planner import OperationPlanner
+from planner.planning.operation_planner import OperationPlanner
+from planner.planning.transition_planner import TransitionPlanner
+from planner.reading import load_station
 from planner.runner import Event
-from planner.station import load_station
-from planner.transition_planner import TransitionPlanner
 
 
 def test_generated_cells_load_with_the_expected_size() -> None:

@@ -20,8 +20,8 @@ from hw.device_file import DeviceSpec, RobotRole, Wire
 from hw.link import LinkStatus
 from hw.modbus.registers import Point, Table
 from hw.pipelines import UNKNOWN, Nonsense, PoseAndLast, RobotPrograms, track_move
-from planner.expressions import Value
-from planner.model import VariableKind
+from planner.model.expressions import Value
+from planner.model.flat import VariableKind
 
 Raw = int | bool  # a Modbus value: a bit, or a 16-bit word
 

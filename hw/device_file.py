@@ -33,10 +33,10 @@ import yaml
 
 from hw.modbus.registers import Point
 from hw.pipelines import NamedPoses, RobotPrograms, Tool
-from planner.expressions import Value
-from planner.loading import Reader
-from planner.model import SourceLocation, VariableKind
-from planner.station import Station
+from planner.model.expressions import Value
+from planner.model.flat import SourceLocation, VariableKind
+from planner.model.station import Station
+from planner.reading.yaml_reader import Reader
 
 DEVICE_KEYS = (
     "name",

@@ -26,10 +26,10 @@ from hw.device_file import (
 from hw.modbus.kinds import KINDS, register_map
 from hw.modbus.registers import Kind, Point, RegisterMap, Table
 from hw.pipelines import RobotPrograms, Tool
-from planner.expressions import Value
-from planner.loading import Reader, closest
-from planner.model import TransitionKind, Variable, VariableKind
-from planner.station import Station
+from planner.model.expressions import Value
+from planner.model.flat import TransitionKind, Variable, VariableKind
+from planner.model.station import Station
+from planner.reading.yaml_reader import Reader, closest
 
 Fields = dict[str, tuple[yaml.Node, yaml.Node]]
 JOINTS = 6

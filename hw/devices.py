@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
 
 from hw.link import LinkStatus
-from planner.expressions import Value
+from planner.model.expressions import Value
 
 
 @dataclass(frozen=True)

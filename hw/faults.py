@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 from enum import StrEnum
 from typing import Protocol, runtime_checkable
 
-from planner.expressions import Value
+from planner.model.expressions import Value
 
 
 class FaultKind(StrEnum):

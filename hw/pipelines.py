@@ -24,7 +24,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Generic, TypeVar
 
-from planner.expressions import Value
+from planner.model.expressions import Value
 
 A = TypeVar("A")
 B = TypeVar("B")

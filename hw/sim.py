@@ -15,10 +15,10 @@ from collections.abc import Mapping
 from hw.devices import DeviceReport
 from hw.faults import FAULTS, Fault, FaultKind
 from hw.link import LinkStatus
-from planner.expressions import Value
-from planner.model import TransitionKind, VariableKind
-from planner.semantics import Semantics
-from planner.station import Station
+from planner.model.expressions import Value
+from planner.model.flat import TransitionKind, VariableKind
+from planner.model.semantics import Semantics
+from planner.model.station import Station
 
 
 class SimulatedWorld:

@@ -25,8 +25,8 @@ from hw.link import LinkStatus
 from hw.modbus.driver import ModbusDriver
 from hw.modbus.kinds import register_map
 from hw.ur.driver import URDriver
-from planner.expressions import Value
-from planner.station import Station
+from planner.model.expressions import Value
+from planner.model.station import Station
 
 
 class World(Protocol):

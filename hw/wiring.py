@@ -12,9 +12,9 @@ from collections.abc import Sequence
 import yaml
 
 from hw.device_file import DeviceSpec
-from planner.loading import Reader
-from planner.model import VariableKind
-from planner.station import Station
+from planner.model.flat import VariableKind
+from planner.model.station import Station
+from planner.reading.yaml_reader import Reader
 
 MUST_BE_WIRED = (VariableKind.MEASURED, VariableKind.COMMAND)
 

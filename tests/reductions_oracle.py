@@ -1,8 +1,8 @@
 """What the bdd engine's reductions must do for a query, read independently of `planner/`.
 
 `tests/oracle.py` says what a plan must be (section 8); this module says how the exact
-reductions must get there, from the docstrings of `planner.relevance` and
-`planner.symmetry` alone, by brute force where it matters:
+reductions must get there, from the docstrings of `planner.planning.relevance` and
+`planner.planning.symmetry` alone, by brute force where it matters:
 
 - `expected_structure`: the independent components of a query by union-find over what
   ties variables together, which of them must move (*active*), and, with each active one
@@ -11,7 +11,7 @@ reductions must get there, from the docstrings of `planner.relevance` and
 - `explicit_swap`: whether swapping two numbered tokens is an automorphism of the model,
   checked on every state.
 
-It reads the model through `planner.model` and `planner.expressions` (parsing is tested
+It reads the model through `planner.model.flat` and `planner.model.expressions` (parsing is tested
 elsewhere) and nothing of the reductions themselves.
 """
 
@@ -22,10 +22,10 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from planner.expressions import Expr, conjuncts, format_expr, variables_of
-from planner.model import Model, Transition, TransitionKind
-from planner.planning import PlanQuery
-from planner.semantics import compile_expr
+from planner.model.expressions import Expr, conjuncts, format_expr, variables_of
+from planner.model.flat import Model, Transition, TransitionKind
+from planner.model.semantics import compile_expr
+from planner.planning.query import PlanQuery
 
 if TYPE_CHECKING:
     from tests import oracle as O

@@ -2,8 +2,8 @@
 
 `tests/strategies.py` draws flat models of a few variables, which almost never split into
 independent components or hold interchangeable objects.  These strategies build them on
-purpose, from the same building blocks, so that every reduction of `planner.relevance`
-and `planner.symmetry` is exercised against the oracle:
+purpose, from the same building blocks, so that every reduction of `planner.planning.relevance`
+and `planner.planning.symmetry` is exercised against the oracle:
 
 - `component_models`: 2-3 *parts* over disjoint variables, each a small random model with
   every kind of transition and its own specifications, optionally joined by *bridges*

@@ -24,10 +24,11 @@ from app.alarms import (
 )
 from app.scenario import Planners, ScheduledFault, load_scenario, play
 from hw.sim import Fault
-from planner.operation_planner import OperationPlanner
+from planner.model.station import Station
+from planner.planning.operation_planner import OperationPlanner
+from planner.planning.transition_planner import TransitionPlanner
+from planner.reading import load_station
 from planner.runner import Runner, RunnerState
-from planner.station import Station, load_station
-from planner.transition_planner import TransitionPlanner
 
 ROOT = Path(__file__).resolve().parent.parent
 MODEL = ROOT / "models" / "demo_station.yaml"

@@ -9,8 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from planner.bdd_data import from_data, to_data
-from planner.symbolic import cudd
+from planner.bdd.data import from_data, to_data
+from planner.bdd.symbolic import cudd
 
 BITS = [f"b{i}" for i in range(6)]
 
@@ -88,7 +88,7 @@ def test_the_sat_engine_flattens_a_bdd_deeper_than_the_recursion_limit() -> None
     import sys
     from types import SimpleNamespace
 
-    from planner.bmc import BddCircuit
+    from planner.planning.bmc import BddCircuit
 
     depth = sys.getrecursionlimit() + 500
     bits = [f"x{i}" for i in range(depth)]

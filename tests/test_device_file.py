@@ -9,8 +9,9 @@ import pytest
 
 from hw.device_file import DriverKind, RobotRole, load_devices
 from hw.modbus.registers import Point, Table
-from planner.loading import ModelError
-from planner.station import Station, load_station
+from planner.model.station import Station
+from planner.reading import load_station
+from planner.reading.yaml_reader import ModelError
 
 ROOT = Path(__file__).resolve().parent.parent
 MODEL = ROOT / "models" / "demo_station.yaml"

@@ -18,10 +18,11 @@ import pytest
 from app.scenario import Planners, load_scenario, play
 from app.station_cycle import ScheduledFault
 from hw.faults import Fault, FaultKind
-from planner.operation_planner import OperationPlanner
+from planner.model.station import ResourceKind, Station
+from planner.planning.operation_planner import OperationPlanner
+from planner.planning.transition_planner import TransitionPlanner
+from planner.reading import load_station
 from planner.runner import EventKind
-from planner.station import ResourceKind, Station, load_station
-from planner.transition_planner import TransitionPlanner
 
 ROOT = Path(__file__).resolve().parent.parent
 MODEL = ROOT / "models" / "demo_station.yaml"

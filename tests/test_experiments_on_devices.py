@@ -21,7 +21,7 @@ import pytest
 
 from app.scenario import load_scenario
 from hw.ur.emulated import free_block, on_block
-from planner.station import load_station
+from planner.reading import load_station
 from tests.test_runner import is_subsequence, matches
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -14,11 +14,12 @@ from typing import Any
 import pytest
 
 from app.scenario import Planners, Scenario, load_scenario, play
-from planner.operation_planner import OperationPlanner
-from planner.planning import PlanResult
+from planner.model.station import Station
+from planner.planning.operation_planner import OperationPlanner
+from planner.planning.query import PlanResult
+from planner.planning.transition_planner import TransitionPlanner
+from planner.reading import load_station
 from planner.runner import Event, EventKind, PlanLevel, RunnerState
-from planner.station import Station, load_station
-from planner.transition_planner import TransitionPlanner
 
 ROOT = Path(__file__).resolve().parent.parent
 MODEL = ROOT / "models" / "demo_station.yaml"

@@ -6,8 +6,9 @@ import textwrap
 
 import pytest
 
-from planner.loading import ModelError, load_model
-from planner.transition_planner import TransitionPlanner
+from planner.planning.transition_planner import TransitionPlanner
+from planner.reading import load_model
+from planner.reading.yaml_reader import ModelError
 
 GOOD = """\
 variables:

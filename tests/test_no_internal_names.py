@@ -30,8 +30,9 @@ from typing import Any
 
 import pytest
 
+from planner.model.station import Station
+from planner.reading import load_station
 from planner.runner import Reject
-from planner.station import Station, load_station
 from tests.stations import RunningStation, start_station
 from tests.test_browser_operator import sign_in_first_time
 

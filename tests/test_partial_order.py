@@ -10,12 +10,13 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from bench import family
-from planner.expressions import parse_expr
-from planner.loading import load_model, scope_for
-from planner.partial_order import Block, blocks, independent_operations
-from planner.planning import PlanQuery
-from planner.semantics import Semantics
-from planner.transition_planner import TransitionPlanner
+from planner.model.expression_text import parse_expr
+from planner.model.semantics import Semantics
+from planner.planning.partial_order import Block, blocks, independent_operations
+from planner.planning.query import PlanQuery
+from planner.planning.transition_planner import TransitionPlanner
+from planner.reading import load_model
+from planner.reading.yaml_reader import scope_for
 
 try:
     from tests import oracle as O

@@ -14,7 +14,10 @@ from pathlib import Path
 import pytest
 
 from app.planning_worker import PlanningWorker
-from planner.operation_planner import OperationPlanner
+from planner.model.station import Station
+from planner.planning.operation_planner import OperationPlanner
+from planner.planning.transition_planner import TransitionPlanner
+from planner.reading import load_station
 from planner.runner import (
     Action,
     EnterRestart,
@@ -25,8 +28,6 @@ from planner.runner import (
     RunnerConfig,
     StartIntention,
 )
-from planner.station import Station, load_station
-from planner.transition_planner import TransitionPlanner
 
 MINI = Path(__file__).resolve().parent / "models" / "mini_station.yaml"
 

@@ -7,7 +7,7 @@ jointly when no such order exists), on each part's cone of influence (`cone`), a
 every combination must give the oracle's status and minimal length and a legal plan; and
 each must actually happen where the model's structure says it must.
 
-`Expected` below is an independent reading of `planner.relevance`'s docstring: the
+`Expected` below is an independent reading of `planner.planning.relevance`'s docstring: the
 components are computed here from the model and the query alone, each active component is
 planned by the oracle on its own sub-model, and from those plans it follows how many parts
 the engine reports and how many bits it searches.
@@ -28,13 +28,14 @@ from hypothesis import note as record_note
 from hypothesis import strategies as st
 from hypothesis.control import currently_in_test_context
 
-from planner.expressions import parse_expr
-from planner.loading import ModelError, load_model, scope_for
-from planner.model import Model, TransitionKind
-from planner.planning import PlanQuery, PlanResult, PlanStatus
-from planner.symbolic_planner import Reductions
-from planner.symmetry import find_symmetries
-from planner.transition_planner import TransitionPlanner
+from planner.model.expression_text import parse_expr
+from planner.model.flat import Model, TransitionKind
+from planner.planning.query import PlanQuery, PlanResult, PlanStatus
+from planner.planning.symbolic_planner import Reductions
+from planner.planning.symmetry import find_symmetries
+from planner.planning.transition_planner import TransitionPlanner
+from planner.reading import load_model
+from planner.reading.yaml_reader import ModelError, scope_for
 
 if TYPE_CHECKING:
     from tests import oracle as O

@@ -19,8 +19,11 @@ from app.scenario import (
 )
 from app.station_cycle import ScheduledFault
 from hw.faults import Fault, FaultKind
-from planner.expressions import Value, format_expr
-from planner.operation_planner import OperationPlanner
+from planner.model.expressions import Value, format_expr
+from planner.model.station import Station
+from planner.planning.operation_planner import OperationPlanner
+from planner.planning.transition_planner import TransitionPlanner
+from planner.reading import load_station
 from planner.runner import (
     Action,
     EnterRestart,
@@ -34,8 +37,6 @@ from planner.runner import (
     SetEstimated,
 )
 from planner.runner.tick import Tick
-from planner.station import Station, load_station
-from planner.transition_planner import TransitionPlanner
 from tests.oracle import OracleModel, parse_model, state_from_dict
 
 ROOT = Path(__file__).resolve().parent.parent

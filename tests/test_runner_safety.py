@@ -15,10 +15,13 @@ from app.scenario import Planners, load_scenario, play
 from app.station_cycle import ScheduledFault, StationCycle
 from hw.faults import Fault, FaultKind
 from hw.sim import SimulatedWorld
-from planner.expressions import Value, parse_expr
-from planner.loading import scope_for
-from planner.operation_planner import OperationPlanner
-from planner.partial_order import blocks
+from planner.model.expression_text import parse_expr
+from planner.model.expressions import Value
+from planner.planning.operation_planner import OperationPlanner
+from planner.planning.partial_order import blocks
+from planner.planning.transition_planner import TransitionPlanner
+from planner.reading import load_station
+from planner.reading.yaml_reader import scope_for
 from planner.runner import (
     Approve,
     Event,
@@ -38,8 +41,6 @@ from planner.runner import (
 from planner.runner.following import plan_reaches, take
 from planner.runner.tick import Tick
 from planner.runner.vocabulary import INTENTION_LIFE_CYCLE, OPERATION_LIFE_CYCLE
-from planner.station import load_station
-from planner.transition_planner import TransitionPlanner
 
 ROOT = Path(__file__).resolve().parent.parent
 MODEL = ROOT / "models" / "demo_station.yaml"

@@ -14,8 +14,10 @@ import pytest
 import app.scenario
 from app import supervisor_cache
 from app.scenario import Planners, Scenario, load_scenario, play
-from planner.operation_planner import OperationPlanner
-from planner.partial_order import Block
+from planner.model.station import Station
+from planner.planning.operation_planner import OperationPlanner
+from planner.planning.partial_order import Block
+from planner.reading import load_station
 from planner.runner import (
     Event,
     Inputs,
@@ -26,7 +28,6 @@ from planner.runner import (
     TransitionPlan,
 )
 from planner.runner.snapshot import FORMAT, STORED_AS, SnapshotError, dump, load
-from planner.station import Station, load_station
 
 ROOT = Path(__file__).resolve().parent.parent
 MODEL = ROOT / "models" / "demo_station.yaml"

@@ -26,23 +26,16 @@ from starlette.types import Receive, Scope, Send
 
 from app.web import http_server
 from app.web.headers import SecurityHeaders
-from planner.bmc import _Encoding
-from planner.expressions import (
-    MAX_NESTING,
-    _resolve,
-    depth,
-    format_expr,
-    parse_expr,
-    parse_syntax,
-    variables_of,
-)
-from planner.loading import ModelError, scope_for
-from planner.model import Model
+from planner.bdd.symbolic import SymbolicModel
+from planner.model.expression_text import _resolve, parse_expr, parse_syntax
+from planner.model.expressions import MAX_NESTING, depth, format_expr, variables_of
+from planner.model.flat import Model
+from planner.model.semantics import compile_expr
+from planner.planning.bmc import _Encoding
+from planner.planning.symmetry import Symmetry
+from planner.reading import load_station
+from planner.reading.yaml_reader import ModelError, scope_for
 from planner.runner import LeaveRestart
-from planner.semantics import compile_expr
-from planner.station import load_station
-from planner.symbolic import SymbolicModel
-from planner.symmetry import Symmetry
 from tests.stations import ROOT, RunningStation, form_token, free_port, sign_in_with_forms
 from tests.test_browser_operator import screenshot, sign_in
 
@@ -181,7 +174,7 @@ def test_yaml_nested_past_the_limit_is_refused_not_a_crash() -> None:
 
 def walk_everywhere(model: Model, expr: Any) -> None:
     """Each recursive walker over expressions: reparse its text, names, evaluation, hash and
-    equality, BDD (planner.symbolic), SAT (planner.bmc), the symmetry image."""
+    equality, BDD (planner.bdd.symbolic), SAT (planner.planning.bmc), the symmetry image."""
     sym = SymbolicModel(model)
     names = {v.name: v.domain for v in model.variables}
     index = model.variable_index

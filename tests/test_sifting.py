@@ -7,13 +7,12 @@ from pathlib import Path
 import yaml
 
 from bench import cells
-from planner.loading import load_model
-from planner.planning import PlanQuery, PlanStatus
-from planner.sifting import blocks
-from planner.station import load_station
-from planner.symbolic import SymbolicModel
-from planner.synthesis import bad_states
-from planner.transition_planner import TransitionPlanner
+from planner.bdd.sifting import blocks
+from planner.bdd.symbolic import SymbolicModel
+from planner.bdd.synthesis import bad_states
+from planner.planning.query import PlanQuery, PlanStatus
+from planner.planning.transition_planner import TransitionPlanner
+from planner.reading import load_model, load_station
 
 MINI = Path(__file__).parent / "models" / "mini_station.yaml"
 

@@ -6,15 +6,16 @@ from pathlib import Path
 
 import pytest
 
-from planner.expressions import Equals, format_expr, variables_of
-from planner.loading import ModelError
-from planner.model import TransitionKind
-from planner.operation_planner import OperationPlanner
-from planner.partial_order import independent_operations
-from planner.planning import PlanQuery, PlanStatus
-from planner.semantics import Semantics
-from planner.station import Station, load_station
-from planner.transition_planner import TransitionPlanner
+from planner.model.expressions import Equals, format_expr, variables_of
+from planner.model.flat import TransitionKind
+from planner.model.semantics import Semantics
+from planner.model.station import Station
+from planner.planning.operation_planner import OperationPlanner
+from planner.planning.partial_order import independent_operations
+from planner.planning.query import PlanQuery, PlanStatus
+from planner.planning.transition_planner import TransitionPlanner
+from planner.reading import load_station
+from planner.reading.yaml_reader import ModelError
 
 MINI = Path(__file__).parent / "models" / "mini_station.yaml"
 

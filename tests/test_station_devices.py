@@ -22,10 +22,11 @@ from app.station_cycle import StationCycle
 from hw.device_file import DeviceFile, load_devices
 from hw.faults import Fault, FaultKind
 from hw.ur.emulated import free_block, on_block
-from planner.operation_planner import OperationPlanner
+from planner.model.station import Station
+from planner.planning.operation_planner import OperationPlanner
+from planner.planning.transition_planner import TransitionPlanner
+from planner.reading import load_station
 from planner.runner import Runner, RunnerConfig
-from planner.station import Station, load_station
-from planner.transition_planner import TransitionPlanner
 
 ROOT = Path(__file__).resolve().parent.parent
 MODEL = ROOT / "models" / "demo_station.yaml"

@@ -10,11 +10,11 @@ import yaml
 
 from app import supervisor_cache
 from bench import family
-from planner.expressions import parse_expr
-from planner.loading import scope_for
-from planner.planning import PlanQuery
-from planner.station import load_station
-from planner.transition_planner import TransitionPlanner
+from planner.model.expression_text import parse_expr
+from planner.planning.query import PlanQuery
+from planner.planning.transition_planner import TransitionPlanner
+from planner.reading import load_station
+from planner.reading.yaml_reader import scope_for
 
 MINI = Path(__file__).parent / "models" / "mini_station.yaml"
 

@@ -1,6 +1,6 @@
 """Componentwise synthesis against the oracle and against the closure over the whole model.
 
-Bad states are computed one component at a time (planner/synthesis.py explains why that is
+Bad states are computed one component at a time (planner/bdd/synthesis.py explains why that is
 exact although automatic transitions have priority over the whole model); these tests check
 it on random models made of independent parts, where the decomposition actually splits.
 """
@@ -16,20 +16,14 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from bench import cells
-from planner.expressions import variables_of
-from planner.loading import ModelError, load_model
-from planner.model import Model, TransitionKind
-from planner.semantics import Semantics
-from planner.station import load_station
-from planner.symbolic import SymbolicModel
-from planner.synthesis import (
-    backward_closure,
-    bad_states,
-    components,
-    violated_by,
-    violations,
-)
-from planner.transition_planner import TransitionPlanner
+from planner.bdd.symbolic import SymbolicModel
+from planner.bdd.synthesis import backward_closure, bad_states, components, violated_by, violations
+from planner.model.expressions import variables_of
+from planner.model.flat import Model, TransitionKind
+from planner.model.semantics import Semantics
+from planner.planning.transition_planner import TransitionPlanner
+from planner.reading import load_model, load_station
+from planner.reading.yaml_reader import ModelError
 
 try:
     from tests import oracle as O

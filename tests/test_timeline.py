@@ -17,9 +17,10 @@ from app import timeline_drawing
 from app.runs import Happening, Run, find_runs, from_events
 from app.scenario import Planners, load_scenario, play
 from app.timeline import BarKind, Timeline, timeline
-from planner.operation_planner import OperationPlanner
-from planner.station import Station, load_station
-from planner.transition_planner import TransitionPlanner
+from planner.model.station import Station
+from planner.planning.operation_planner import OperationPlanner
+from planner.planning.transition_planner import TransitionPlanner
+from planner.reading import load_station
 
 ROOT = Path(__file__).resolve().parent.parent
 MODEL = ROOT / "models" / "demo_station.yaml"

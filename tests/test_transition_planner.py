@@ -9,12 +9,13 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from planner.expressions import parse_expr
-from planner.loading import ModelError, load_model, scope_for
-from planner.model import Model, TransitionKind
-from planner.planning import PlanQuery, PlanStatus
-from planner.semantics import Semantics
-from planner.transition_planner import TransitionPlanner
+from planner.model.expression_text import parse_expr
+from planner.model.flat import Model, TransitionKind
+from planner.model.semantics import Semantics
+from planner.planning.query import PlanQuery, PlanStatus
+from planner.planning.transition_planner import TransitionPlanner
+from planner.reading import load_model
+from planner.reading.yaml_reader import ModelError, scope_for
 
 try:
     from tests import oracle as O

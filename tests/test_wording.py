@@ -11,10 +11,11 @@ from typing import Any
 import pytest
 import yaml
 
-from planner.expressions import Equals, Not
-from planner.loading import ModelError, load_model
-from planner.station import Station, load_station
-from planner.wording import Wording, clean, sentence
+from planner.model.expressions import Equals, Not
+from planner.model.station import Station
+from planner.reading import load_model, load_station
+from planner.reading.yaml_reader import ModelError
+from planner.words import Wording, clean, sentence
 from tests.test_no_internal_names import internal_names, offences
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -9,7 +9,7 @@ from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from app.store.tables import ModelVersion, StationRecord
-from planner.station import load_station
+from planner.reading import load_station
 
 
 def versions(session: Session, station: str) -> list[ModelVersion]:

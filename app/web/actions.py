@@ -14,8 +14,8 @@ from typing import TypeVar
 from fastapi import HTTPException
 
 from app.live_station import LiveStation, StationError
-from planner.loading import closest
-from planner.model import TransitionKind, VariableKind
+from planner.model.flat import TransitionKind, VariableKind
+from planner.reading.yaml_reader import closest
 from planner.runner import Action, Event
 
 T = TypeVar("T")

@@ -57,7 +57,7 @@ from app.web.schemas import (
     version_out,
 )
 from app.web.server import Server
-from planner.loading import closest
+from planner.reading.yaml_reader import closest
 from planner.runner import (
     Approve,
     CancelIntention,

@@ -31,7 +31,7 @@ from app.store import audit
 from app.store.audit import AuditEntry, AuditFilter
 from app.store.tables import AuditRecord
 from app.web.deps import Caller, page_context, require, server
-from planner.wording import Wording
+from planner.words import Wording
 
 router = APIRouter(include_in_schema=False)
 

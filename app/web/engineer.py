@@ -2,7 +2,7 @@
 devices) and its controls, and the simulation panel (the experiments E1-E9 on the simulated
 station); the page helpers the other engineer modules share.  The overview and the timeline
 are in app.web.station_pages, the model editor in app.web.model_pages.  Texts are in the
-model's words (planner.wording); names stay in form fields and data-* attributes only.
+model's words (planner.words); names stay in form fields and data-* attributes only.
 
 Every control is an action for the runner (app.web.actions): a typo in a name gets a 404
 with a suggestion, a refusal a 409 with the runner's reason, and the runner's `operator`
@@ -35,7 +35,7 @@ from app.web.actions import (
     perform,
 )
 from app.web.deps import Caller, page_context, require, server
-from planner.expressions import Value, format_value
+from planner.model.expressions import Value, format_value
 from planner.runner import (
     Action,
     CancelIntention,
@@ -50,7 +50,7 @@ from planner.runner import (
     SetEstimated,
     StartIntention,
 )
-from planner.wording import Wording, sentence
+from planner.words import Wording, sentence
 
 router = APIRouter(include_in_schema=False)
 

@@ -22,8 +22,8 @@ from app.store.audit import AuditEntry
 from app.store.tables import ModelVersion
 from app.web.actions import answer
 from app.web.server import Server
-from planner.loading import ModelError
-from planner.station import load_station
+from planner.reading import load_station
+from planner.reading.yaml_reader import ModelError
 
 MAX_MODEL_CHARS = 2_000_000
 # what a request carrying a model may be: the text URL- or JSON-encoded (every other request

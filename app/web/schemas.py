@@ -23,7 +23,7 @@ from app.store.tables import AuditRecord, ModelVersion
 from app.views import CardKind, TaskCard
 from app.web.audit import detail_of
 from app.web.model_editing import MAX_MODEL_CHARS
-from planner.expressions import format_expr
+from planner.model.expressions import format_expr
 from planner.runner import Event, IntentionState, TransitionPlan
 
 INITIAL = IntentionState.INITIAL.value  # the same letter for operations

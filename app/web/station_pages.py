@@ -30,7 +30,7 @@ from app.web.deps import Caller, page_context, require, server
 from app.web.engineer import live_fragment, render
 from planner.runner import IntentionState
 from planner.runner.waiting import waiting_for
-from planner.wording import Wording, sentence
+from planner.words import Wording, sentence
 
 router = APIRouter(include_in_schema=False)
 

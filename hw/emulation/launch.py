@@ -20,7 +20,7 @@ from hw.emulation.control import control
 from hw.emulation.process import EmulatorFailed, EmulatorProcess, start
 from hw.emulation.scene import Scene
 from hw.modbus.kinds import register_map
-from planner.expressions import Value
+from planner.model.expressions import Value
 
 
 @dataclass

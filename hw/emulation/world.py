@@ -30,10 +30,10 @@ from hw.device_file import DeviceFile, DeviceSpec, DriverKind, RobotRole
 from hw.emulation.control import ControlError, control
 from hw.faults import Fault, FaultKind
 from hw.modbus.kinds import register_map
-from planner.expressions import Value
-from planner.model import VariableKind
-from planner.semantics import Semantics
-from planner.station import Station
+from planner.model.expressions import Value
+from planner.model.flat import VariableKind
+from planner.model.semantics import Semantics
+from planner.model.station import Station
 
 log = logging.getLogger(__name__)
 PUSH = 0.3  # rad on the base joint: far enough off every named pose

@@ -36,10 +36,10 @@ from planner.runner.actions import (
     SetEstimated,
     StartIntention,
 )
-from planner.runner.io import Event, Inputs, RunnerConfig, TickResult
 from planner.runner.queries import QueryObserver
 from planner.runner.runner import Runner, run_tick
 from planner.runner.state import OperationPlan, RunnerState, TransitionPlan
+from planner.runner.tick_io import Event, Inputs, RunnerConfig, TickResult
 from planner.runner.vocabulary import (
     EventKind,
     IntentionState,

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from planner.expressions import Value
+from planner.model.expressions import Value
 
 
 @dataclass(frozen=True)

@@ -15,10 +15,10 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
 
-from planner.operation_planner import OperationPlanner
-from planner.planning import PlanQuery, PlanResult, PlanStatus
+from planner.planning.operation_planner import OperationPlanner
+from planner.planning.query import PlanQuery, PlanResult, PlanStatus
+from planner.planning.transition_planner import TransitionPlanner
 from planner.runner.vocabulary import PlanLevel
-from planner.transition_planner import TransitionPlanner
 
 
 class Pending(Exception):

@@ -9,10 +9,10 @@ fixed.
 
 from __future__ import annotations
 
+from planner.model.semantics import State
 from planner.runner.observing import happened
 from planner.runner.tick import Tick
 from planner.runner.vocabulary import EventKind
-from planner.semantics import State
 
 
 def settle(tick: Tick) -> None:

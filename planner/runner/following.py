@@ -1,6 +1,6 @@
 """Following a transition plan: its start order, taking its steps, checking its rest.
 
-A plan found by the transition planner is cut into blocks (`planner.partial_order`): a
+A plan found by the transition planner is cut into blocks (`planner.planning.partial_order`): a
 controlled or maintenance step with the effects and automatic steps that follow it.  A
 block starts when the blocks it comes after are done and its guard holds (DESIGN.md
 section 3.4).  Before it takes a step the runner checks what the model and the supervisor
@@ -14,10 +14,10 @@ back with nothing else to wait for, is a deviation.
 
 from __future__ import annotations
 
-from planner.expressions import Expr
-from planner.model import UNCONTROLLABLE, TransitionKind
-from planner.partial_order import blocks
-from planner.planning import PlanResult
+from planner.model.expressions import Expr
+from planner.model.flat import UNCONTROLLABLE, TransitionKind
+from planner.planning.partial_order import blocks
+from planner.planning.query import PlanResult
 from planner.runner.automatic import automatic_enabled, settle
 from planner.runner.queries import disabled
 from planner.runner.state import TransitionPlan

@@ -20,9 +20,9 @@ next plan.  Recovery ends when every specification holds and the state is not ba
 
 from __future__ import annotations
 
-from planner.expressions import TRUE
-from planner.model import TransitionKind
-from planner.planning import PlanQuery
+from planner.model.expressions import TRUE
+from planner.model.flat import TransitionKind
+from planner.planning.query import PlanQuery
 from planner.runner.automatic import violates_specifications
 from planner.runner.following import follow, startable, stuck, take
 from planner.runner.queries import announce, ask, disabled, no_plan_because

@@ -8,8 +8,8 @@ in restart mode.  Finishing applies its actions.  Its life cycle is in
 
 from __future__ import annotations
 
+from planner.model.expressions import assigned
 from planner.runner.tick import Tick
-from planner.runner.values import assigned
 from planner.runner.vocabulary import IntentionState
 
 

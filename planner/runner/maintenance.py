@@ -16,8 +16,8 @@ be tried again, if it has retries left.
 
 from __future__ import annotations
 
-from planner.model import TransitionKind
-from planner.partial_order import blocks
+from planner.model.flat import TransitionKind
+from planner.planning.partial_order import blocks
 from planner.runner.following import startable, stuck, take
 from planner.runner.queries import announce, ask, recovery_flags, transition_query
 from planner.runner.state import TransitionPlan

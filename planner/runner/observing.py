@@ -10,10 +10,10 @@ tracker's report of decision variables) are taken as they are.
 
 from __future__ import annotations
 
-from planner.expressions import Value
-from planner.runner.io import Inputs
+from planner.model.expressions import Value
 from planner.runner.retries import failed_attempt, late_effect
 from planner.runner.tick import Tick
+from planner.runner.tick_io import Inputs
 from planner.runner.vocabulary import EventKind, ReplanReason
 
 

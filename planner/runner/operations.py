@@ -14,15 +14,14 @@ transitions is made for the operations in error (`planner.runner.maintenance`).
 
 from __future__ import annotations
 
-from planner.expressions import Value
-from planner.partial_order import independent_operations
-from planner.planning import PlanStatus
+from planner.model.expressions import Value, assigned
+from planner.planning.partial_order import independent_operations
+from planner.planning.query import PlanStatus
 from planner.runner.maintenance import plan_maintenance
 from planner.runner.queries import announce, ask, no_plan_because
 from planner.runner.retries import forget_failures, while_blocked
 from planner.runner.state import OperationPlan
 from planner.runner.tick import Tick
-from planner.runner.values import assigned
 from planner.runner.vocabulary import (
     EventKind,
     IntentionState,

@@ -8,7 +8,7 @@ refused with the reason (a `refused` event).  Restart-mode actions are in
 
 from __future__ import annotations
 
-from planner.model import TransitionKind
+from planner.model.flat import TransitionKind
 from planner.runner import restart
 from planner.runner.actions import (
     Action,

@@ -10,12 +10,12 @@ from __future__ import annotations
 from collections.abc import Iterable
 from typing import Protocol
 
-from planner.expressions import Assign, Expr, conjunction, negation
-from planner.planning import PlanQuery, PlanResult, PlanStatus
+from planner.model.expressions import Assign, Expr, conjunction, negation
+from planner.model.station import effect_as_goal
+from planner.planning.query import PlanQuery, PlanResult, PlanStatus
 from planner.runner.answers import Pending
 from planner.runner.tick import Tick
 from planner.runner.vocabulary import EventKind, PlanLevel, RecoveryFlag, ReplanReason, plan_label
-from planner.station import effect_as_goal
 
 # a maintenance step (a person's work, planned in recovery) weighs as much as this many of
 # the station's own steps: a robot that can move itself is not moved by hand

@@ -15,8 +15,8 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from planner.expressions import Value, conjunction, variables_of
-from planner.model import VariableKind
+from planner.model.expressions import Value, conjunction, variables_of
+from planner.model.flat import VariableKind
 from planner.runner.actions import Action, EnterRestart, Reply, ResetOperation, SetEstimated
 from planner.runner.following import follow, plan_reaches, startable, take
 from planner.runner.queries import announce, ask, recovery_flags, transition_query, unchanged

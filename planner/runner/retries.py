@@ -62,7 +62,7 @@ def while_blocked(tick: Tick) -> str:
     """What keeps plans from reaching a goal besides the model itself, as the end of a cause
     (" while r2 does not answer"), so that the first cause names it: an operator told only
     that a camera's goal cannot be reached is not told that a robot stopped answering.
-    Names stay model names; pages put them in words (`planner.wording.Wording.text`)."""
+    Names stay model names; pages put them in words (`planner.words.Wording.text`)."""
     state = tick.state
     parts = []
     if state.unavailable:

@@ -10,9 +10,12 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 
-from planner.expressions import Expr, Value
-from planner.model import VariableKind
-from planner.operation_planner import OperationPlanner
+from planner.model.expressions import Expr, Value
+from planner.model.flat import VariableKind
+from planner.model.semantics import Semantics, State
+from planner.model.station import Station
+from planner.planning.operation_planner import OperationPlanner
+from planner.planning.transition_planner import TransitionPlanner
 from planner.runner import (
     automatic,
     background,
@@ -27,15 +30,12 @@ from planner.runner import (
 )
 from planner.runner.actions import Reply
 from planner.runner.answers import InProcess, Pending, Planning
-from planner.runner.io import Inputs, RunnerConfig, TickResult
 from planner.runner.queries import QueryObserver
 from planner.runner.state import RunnerState
 from planner.runner.station_index import StationIndex
 from planner.runner.tick import Tick
+from planner.runner.tick_io import Inputs, RunnerConfig, TickResult
 from planner.runner.vocabulary import IntentionState, OperationState
-from planner.semantics import Semantics, State
-from planner.station import Station
-from planner.transition_planner import TransitionPlanner
 
 Stopwatch = Callable[[], float]
 

@@ -25,9 +25,10 @@ from collections.abc import Collection, Iterable, Mapping
 from dataclasses import fields
 from typing import Any, TypeVar
 
-from planner.expressions import Expr, ExpressionError, format_expr, parse_expr
-from planner.loading import scope_for
-from planner.partial_order import Block
+from planner.model.expression_text import parse_expr
+from planner.model.expressions import Expr, ExpressionError, format_expr
+from planner.planning.partial_order import Block
+from planner.reading.yaml_reader import scope_for
 from planner.runner.runner import Runner
 from planner.runner.state import OperationPlan, RunnerState, TransitionPlan
 from planner.runner.vocabulary import IntentionState, OperationState, ReplanReason

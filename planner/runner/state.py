@@ -10,10 +10,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 from typing import TypeVar
 
-from planner.expressions import Expr, Value
-from planner.partial_order import Block
+from planner.model.expressions import Expr, Value
+from planner.model.semantics import State
+from planner.planning.partial_order import Block
 from planner.runner.vocabulary import IntentionState, OperationState, ReplanReason
-from planner.semantics import State
 
 
 @dataclass
@@ -21,7 +21,7 @@ class TransitionPlan:
     """A transition plan being followed: its blocks and which of them have been started.
 
     A block is a controlled (or maintenance) step with the effects and automatic steps that
-    follow it (`planner.partial_order`); it may start once the blocks it comes `after` are
+    follow it (`planner.planning.partial_order`); it may start once the blocks it comes `after` are
     done.  Forbidden-state recovery also records which blocks were shown for approval and
     which were approved.
     """

@@ -10,10 +10,10 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 
-from planner.expressions import Expr, Value, conjuncts, variables_of
-from planner.model import Model, TransitionKind, VariableKind
-from planner.semantics import CompiledTransition, Semantics, State, compile_expr
-from planner.station import Intention, Operation, Station
+from planner.model.expressions import Expr, Value, conjuncts, variables_of
+from planner.model.flat import Model, TransitionKind, VariableKind
+from planner.model.semantics import CompiledTransition, Semantics, State, compile_expr
+from planner.model.station import Intention, Operation, Station
 
 Predicate = Callable[[State], bool]
 

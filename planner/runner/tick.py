@@ -11,9 +11,10 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, TypeVar
 
-from planner.expressions import Value
-from planner.runner.io import Event
+from planner.model.expressions import Value
+from planner.model.semantics import State
 from planner.runner.state import RunnerState
+from planner.runner.tick_io import Event
 from planner.runner.vocabulary import (
     INTENTION_LIFE_CYCLE,
     OPERATION_LIFE_CYCLE,
@@ -22,7 +23,6 @@ from planner.runner.vocabulary import (
     OperationState,
     ReplanReason,
 )
-from planner.semantics import State
 
 if TYPE_CHECKING:
     from planner.runner.runner import Runner

@@ -12,8 +12,8 @@ and count a failure, and the operation plan is made again without them.
 
 from __future__ import annotations
 
-from planner.expressions import Expr, conjunction
-from planner.planning import PlanStatus
+from planner.model.expressions import Expr, conjunction
+from planner.planning.query import PlanStatus
 from planner.runner.following import follow, plan_reaches, startable, take
 from planner.runner.queries import (
     announce,

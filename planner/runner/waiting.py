@@ -1,7 +1,7 @@
 """What the station is waiting for, and from whom (DESIGN.md section 8's `waiting_for`).
 
 Texts name things by their model names, written so that a page can put each in words
-(`planner.wording.Wording.text`: "r2 to answer again" → "robot 2 to answer again").
+(`planner.words.Wording.text`: "r2 to answer again" → "robot 2 to answer again").
 
 Read off the runner's state, never stored: an approval or a maintenance step is the
 operator's, a resource that stopped answering is a device's, and where nothing in the model
@@ -15,7 +15,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import StrEnum
 
-from planner.model import TransitionKind
+from planner.model.flat import TransitionKind
 from planner.runner.runner import Runner
 from planner.runner.state import RunnerState, TransitionPlan
 from planner.runner.vocabulary import IntentionState, OperationState

@@ -34,9 +34,9 @@ from __future__ import annotations
 from collections.abc import Iterable
 from dataclasses import dataclass
 
-from planner.coupling import Groups, touched
-from planner.expressions import Expr, Implies, Not, Or, conjuncts, variables_of
-from planner.model import UNCONTROLLABLE, Model, Transition
+from planner.model.coupling import Groups, touched
+from planner.model.expressions import Expr, Implies, Not, Or, conjuncts, variables_of
+from planner.model.flat import UNCONTROLLABLE, Model, Transition
 
 
 def allowed_conjuncts(forbidden: Expr) -> tuple[Expr, ...]:

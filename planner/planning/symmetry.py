@@ -28,7 +28,8 @@ import re
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
-from planner.expressions import (
+from planner.bdd.symbolic import Function, SymbolicModel
+from planner.model.expressions import (
     And,
     Assign,
     BoolVar,
@@ -42,8 +43,7 @@ from planner.expressions import (
     Value,
     conjunction,
 )
-from planner.model import UNCONTROLLABLE, Model
-from planner.symbolic import Function, SymbolicModel
+from planner.model.flat import UNCONTROLLABLE, Model
 
 _NUMBERED = re.compile(r"^(.*?)(\d+)$")
 _SEPARATORS = re.compile(r"([._])")

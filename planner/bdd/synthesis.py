@@ -17,17 +17,11 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
-from planner.coupling import Groups, touched
-from planner.cover import Cover
-from planner.expressions import (
-    Equals,
-    Expr,
-    format_expr,
-    negation,
-    variables_of,
-)
-from planner.model import Model, Specification, TransitionKind
-from planner.symbolic import Function, SymbolicModel, SymbolicTransition
+from planner.bdd.cover import Cover
+from planner.bdd.symbolic import Function, SymbolicModel, SymbolicTransition
+from planner.model.coupling import Groups, touched
+from planner.model.expressions import Equals, Expr, format_expr, negation, variables_of
+from planner.model.flat import Model, Specification, TransitionKind
 
 
 def automatic_guard(sym: SymbolicModel, disabled: frozenset[str] = frozenset()) -> Function:

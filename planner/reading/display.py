@@ -15,10 +15,10 @@ from typing import TYPE_CHECKING
 
 import yaml
 
-from planner.expressions import Value
+from planner.model.expressions import Value
 
 if TYPE_CHECKING:
-    from planner.loading import Reader
+    from planner.reading.yaml_reader import Reader
 
 MAX_DISPLAY_CHARS = 80
 """The longest words accepted: two lines of a 320 px watch card."""

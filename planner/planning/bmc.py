@@ -17,20 +17,10 @@ from dataclasses import dataclass
 
 from pysat.solvers import Cadical195
 
-from planner.expressions import (
-    And,
-    BoolVar,
-    Const,
-    Equals,
-    Expr,
-    Implies,
-    Not,
-    Or,
-    SameValue,
-)
-from planner.model import TransitionKind
-from planner.planning import PlanQuery, PlanResult, PlanStatus, State
-from planner.symbolic import Function, SymbolicModel, SymbolicTransition
+from planner.bdd.symbolic import Function, SymbolicModel, SymbolicTransition
+from planner.model.expressions import And, BoolVar, Const, Equals, Expr, Implies, Not, Or, SameValue
+from planner.model.flat import TransitionKind
+from planner.planning.query import PlanQuery, PlanResult, PlanStatus, State
 
 
 @dataclass(frozen=True, slots=True)

@@ -19,8 +19,8 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
-from planner.expressions import Expr, variables_of
-from planner.model import UNCONTROLLABLE, Model
+from planner.model.expressions import Expr, variables_of
+from planner.model.flat import UNCONTROLLABLE, Model
 
 
 @dataclass(frozen=True)

@@ -10,8 +10,8 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 from functools import cache
 
-from planner.expressions import variables_of
-from planner.model import Transition
+from planner.model.expressions import variables_of
+from planner.model.flat import Transition
 
 
 @cache

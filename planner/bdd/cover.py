@@ -1,14 +1,14 @@
 """Readable predicates from BDDs: irredundant sums of products over the model's variables.
 
-Used for the supervisor guards that `sp check` prints (planner/synthesis.py).
+Used for the supervisor guards that `sp check` prints (planner/bdd/synthesis.py).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 
-from planner.expressions import BoolVar, Equals, Expr, Not, Value, conjunction, disjunction
-from planner.symbolic import Function, SymbolicModel
+from planner.bdd.symbolic import Function, SymbolicModel
+from planner.model.expressions import BoolVar, Equals, Expr, Not, Value, conjunction, disjunction
 
 Cube = tuple[tuple[str, bool], ...]
 """Literals over BDD bits, outermost bit first."""

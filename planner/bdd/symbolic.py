@@ -13,7 +13,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, replace
 from typing import Any
 
-from planner.expressions import (
+from planner.model.expressions import (
     And,
     Assign,
     BoolVar,
@@ -27,7 +27,7 @@ from planner.expressions import (
     Value,
     variables_of,
 )
-from planner.model import Model, Transition, TransitionKind
+from planner.model.flat import Model, Transition, TransitionKind
 
 
 def _import_cudd() -> Any:
@@ -323,7 +323,7 @@ class SymbolicModel:
 
     def restricted(self, t: SymbolicTransition, targets: frozenset[str]) -> SymbolicTransition:
         """`t` with only its actions on `targets` (the others' variables are dropped from a
-        search, see `planner.relevance`); `t` itself when it writes nothing else."""
+        search, see `planner.planning.relevance`); `t` itself when it writes nothing else."""
         if t.transition.written <= targets:
             return t
         key = (t.name, targets & t.transition.written)

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from enum import Enum
 
-from planner.expressions import Expr, Value
+from planner.model.expressions import Expr, Value
 
 State = tuple[Value, ...]
 

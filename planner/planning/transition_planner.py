@@ -11,16 +11,9 @@ from collections.abc import Callable
 from functools import cached_property
 from typing import TYPE_CHECKING
 
-from planner import search
-from planner.expressions import TRUE, variables_of
-from planner.loading import Diagnostic, ModelError
-from planner.model import Model, SourceLocation
-from planner.planning import PlanQuery, PlanResult, PlanStatus, State
-from planner.semantics import compile_expr
-from planner.sifting import sift
-from planner.symbolic import Function, SymbolicModel
-from planner.symbolic_planner import ALL_REDUCTIONS, Reductions, SymbolicPlanner
-from planner.synthesis import (
+from planner.bdd.sifting import sift
+from planner.bdd.symbolic import Function, SymbolicModel
+from planner.bdd.synthesis import (
     SupervisorGuard,
     automatic_cycle,
     bad_by_specification,
@@ -29,9 +22,16 @@ from planner.synthesis import (
     supervisor_guards,
     violated_by,
 )
+from planner.model.expressions import TRUE, variables_of
+from planner.model.flat import Model, SourceLocation
+from planner.model.semantics import compile_expr
+from planner.planning import search
+from planner.planning.query import PlanQuery, PlanResult, PlanStatus, State
+from planner.planning.symbolic_planner import ALL_REDUCTIONS, Reductions, SymbolicPlanner
+from planner.reading.yaml_reader import Diagnostic, ModelError
 
 if TYPE_CHECKING:
-    from planner.bmc import BoundedModelChecker
+    from planner.planning.bmc import BoundedModelChecker
 
 ENGINES = ("bdd", "sat")
 
@@ -133,7 +133,7 @@ class TransitionPlanner:
 
     @cached_property
     def _bmc(self) -> BoundedModelChecker:
-        from planner.bmc import BoundedModelChecker  # PySAT is loaded only when asked for
+        from planner.planning.bmc import BoundedModelChecker
 
         return BoundedModelChecker(self.sym, self.bad)
 

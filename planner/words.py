@@ -19,8 +19,7 @@ from __future__ import annotations
 import re
 from collections.abc import Iterable
 
-from planner.display_keys import humanised
-from planner.expressions import (
+from planner.model.expressions import (
     And,
     BoolVar,
     Const,
@@ -32,8 +31,9 @@ from planner.expressions import (
     SameValue,
     Value,
 )
-from planner.model import Variable
-from planner.station import Station
+from planner.model.flat import Variable
+from planner.model.station import Station
+from planner.reading.display import humanised
 
 # ---- sentences ------------------------------------------------------------------------------
 

@@ -14,7 +14,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from planner.symbolic import Function
+from planner.bdd.symbolic import Function
 
 TRUE, FALSE = 0, 1
 

@@ -11,11 +11,11 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
 
-from planner.expressions import TRUE, Value, conjunction, disjunction, variables_of
-from planner.model import Model, Transition, TransitionKind
-from planner.planning import PlanQuery, PlanResult
-from planner.station import Intention, Operation, Station
-from planner.transition_planner import TransitionPlanner
+from planner.model.expressions import TRUE, Value, conjunction, disjunction, variables_of
+from planner.model.flat import Model, Transition, TransitionKind
+from planner.model.station import Intention, Operation, Station
+from planner.planning.query import PlanQuery, PlanResult
+from planner.planning.transition_planner import TransitionPlanner
 
 
 def operation_model(station: Station) -> Model:

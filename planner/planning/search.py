@@ -7,7 +7,7 @@ model checking, proving that no shorter plan exists costs nothing extra here: th
 layers simply did not meet the goal.
 
 A `Problem` is one search over some of the model's variables (a part of the station, see
-`planner.relevance`); its sets mention only those variables' bits.  The plan picked does
+`planner.planning.relevance`); its sets mention only those variables' bits.  The plan picked does
 not depend on the BDD variable order (it is the least minimal plan by transition order),
 so a planner whose order was tuned and cached plans exactly like a fresh one.
 """
@@ -17,10 +17,10 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-from planner.coupling import reads
-from planner.model import TransitionKind
-from planner.symbolic import Function, SymbolicModel, SymbolicTransition, cudd
-from planner.symmetry import Swapper, canonical, orbit
+from planner.bdd.symbolic import Function, SymbolicModel, SymbolicTransition, cudd
+from planner.model.coupling import reads
+from planner.model.flat import TransitionKind
+from planner.planning.symmetry import Swapper, canonical, orbit
 
 
 @dataclass(frozen=True)

@@ -16,11 +16,11 @@ from __future__ import annotations
 from collections.abc import Iterable, Sequence
 from typing import Any
 
-from planner.coupling import Groups, touched
-from planner.expressions import Equals, SameValue, Value, variables_of
-from planner.model import Model
-from planner.symbolic import Function, SymbolicModel, cudd
-from planner.synthesis import BadPart, valid_codes
+from planner.bdd.symbolic import Function, SymbolicModel, cudd
+from planner.bdd.synthesis import BadPart, valid_codes
+from planner.model.coupling import Groups, touched
+from planner.model.expressions import Equals, SameValue, Value, variables_of
+from planner.model.flat import Model
 
 SCRATCH_MEMORY = 64 * 2**20  # bytes: CUDD sizes its tables by it (dd's default is 1 GB)
 SCRATCH_CACHE = 2**12  # initial computed-table slots

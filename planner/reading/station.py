@@ -1,49 +1,37 @@
-"""The station form of a model: resources, abilities, operations, intentions (docs/models.md).
-
-It compiles to the flat `Model` of DESIGN.md section 8, and keeps what the runner and the
-operation planner need besides: each ability's standard predicates and transitions (seed 003
-sec. II-C), the restart abilities (seed 001 VIII-A), and the operations and intentions
-(seed 000 Definitions 5 and 6).
+"""The station form read from YAML: resources, abilities (one per parameter value),
+operations and intentions, compiled to the flat model with every problem located.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field, replace
-from enum import StrEnum
+from dataclasses import dataclass, replace
 
 import yaml
 
-from planner.display_keys import fill_checked, parameter_words, read_value_words
-from planner.expressions import (
-    TRUE,
-    Assign,
-    BoolVar,
-    Equals,
-    Expr,
-    Not,
-    SameValue,
-    Scope,
-    Value,
-    conjunction,
-    is_name,
-    substitute,
+from planner.model.expression_text import Scope, is_name, substitute
+from planner.model.expressions import TRUE, Assign, Expr, SameValue, Value, conjunction
+from planner.model.flat import Model, Specification, Transition, TransitionKind, Variable
+from planner.model.station import (
+    Ability,
+    Intention,
+    Operation,
+    Resource,
+    ResourceKind,
+    Station,
+    value_is,
 )
-from planner.loading import (
-    Reader,
-    _each,
+from planner.reading.display import fill_checked, parameter_words, read_value_words
+from planner.reading.flat import (
     name_nodes,
     read_actions,
     read_display,
-    read_flat,
     read_specification,
-    read_top,
     read_transition,
     read_variable,
-    scope_for,
 )
-from planner.model import Model, Specification, Transition, TransitionKind, Variable
-from planner.watch import Watch, read_watch
+from planner.reading.watch import read_watch
+from planner.reading.yaml_reader import Reader, each, scope_for
 
 STATION_KEYS = ("station", "description", "display", "resources", "operations", "intentions")
 _RESOURCE_KEYS = (
@@ -81,127 +69,7 @@ _INTENTION_KEYS = ("name", "description", "display", "precondition", "goal", "al
 _PARAMETER_KEYS = ("name", "values", "display_values")
 
 
-@dataclass(frozen=True)
-class Ability:
-    """One (instantiated) ability of a resource: its named predicates and its transitions."""
-
-    resource: str
-    name: str  # e.g. goto_bp1
-    template: str  # e.g. goto
-    value: str | None  # the parameter value of this instance
-    predicates: dict[str, Expr]
-    transitions: tuple[str, ...]
-    restart: bool = False
-    description: str = ""  # plain words, with the parameter's value filled in
-    display: str = ""  # its name for people, the value's words filled in (planner.wording)
-
-    @property
-    def qualified(self) -> str:
-        return f"{self.resource}.{self.name}"
-
-
-class ResourceKind(StrEnum):
-    """Who a resource's effects come from: a device, timed out when late, or a person (an
-    operator with a watch), who takes the time the work takes and is never timed out."""
-
-    DEVICE = "device"
-    PERSON = "person"
-
-
-@dataclass(frozen=True)
-class Resource:
-    name: str
-    description: str
-    variables: tuple[str, ...]
-    abilities: tuple[str, ...]  # qualified ability names
-    transitions: tuple[str, ...]  # every transition belonging to the resource
-    kind: ResourceKind = ResourceKind.DEVICE
-    watch: Watch | None = None  # a person's smartwatch (planner.watch)
-    display: str = ""  # its name for people (planner.wording)
-
-    @property
-    def person(self) -> bool:
-        return self.kind is ResourceKind.PERSON
-
-
-@dataclass(frozen=True)
-class Operation:
-    """`<precondition, effects, goal, actions>` (seed 000 Definition 5)."""
-
-    name: str
-    precondition: Expr
-    effects: tuple[Assign, ...]
-    goal: Expr
-    actions: tuple[Assign, ...] = ()
-    description: str = ""
-    display: str = ""  # its name for people, the value's words filled in (planner.wording)
-
-    def planning_goal(self, values: Mapping[str, Value]) -> Expr:
-        """The transition planner's goal: `goal` and the effects evaluated in `values`."""
-        return conjunction([self.goal, *(effect_as_goal(a, values) for a in self.effects)])
-
-
-@dataclass(frozen=True)
-class Intention:
-    """`<precondition, goal, always, actions>` (seed 000 Definition 6; `always U goal`)."""
-
-    name: str
-    precondition: Expr
-    goal: Expr
-    always: Expr | None = None
-    actions: tuple[Assign, ...] = ()
-    description: str = ""
-    display: str = ""  # its name for people (planner.wording)
-
-
-def effect_as_goal(action: Assign, values: Mapping[str, Value]) -> Expr:
-    """`x := v` as `x == v`; `x := y` as `x == <value of y in values>`."""
-    if action.source is None:
-        assert action.value is not None
-        return _equals(action.target, action.value)
-    return _equals(action.target, values[action.source])
-
-
-def _equals(name: str, value: Value) -> Expr:
-    if isinstance(value, bool):
-        return BoolVar(name) if value else Not(BoolVar(name))
-    return Equals(name, value)
-
-
-@dataclass(frozen=True)
-class Station:
-    model: Model
-    name: str = ""
-    resources: tuple[Resource, ...] = ()
-    abilities: tuple[Ability, ...] = ()
-    operations: tuple[Operation, ...] = ()
-    intentions: tuple[Intention, ...] = ()
-    predicates: dict[str, Expr] = field(default_factory=dict)
-    restart_transitions: frozenset[str] = frozenset()
-    description: str = ""
-    display: str = ""  # the station's name for people (planner.wording)
-
-    def operation(self, name: str) -> Operation:
-        return next(o for o in self.operations if o.name == name)
-
-    def intention(self, name: str) -> Intention:
-        return next(i for i in self.intentions if i.name == name)
-
-    @property
-    def watches(self) -> tuple[tuple[Resource, Watch], ...]:
-        """The people's watches, with the person each belongs to."""
-        return tuple((r, r.watch) for r in self.resources if r.watch is not None)
-
-
 Fields = dict[str, tuple[yaml.Node, yaml.Node]]
-
-
-def load_station(text: str, file: str = "<model>") -> Station:
-    """Parse a model file of either form; a flat model becomes a station with no extras."""
-    reader, top = read_top(text, file, STATION_KEYS)
-    if any(key in top for key in STATION_KEYS):
-        return read_station(reader, top)
-    return Station(read_flat(reader, top))
 
 
 def read_station(reader: Reader, top: Fields) -> Station:
@@ -209,7 +77,7 @@ def read_station(reader: Reader, top: Fields) -> Station:
     display = read_display(reader, top, f"station '{name}'")
     # 1. variables: station-wide ones, then each resource's (named RESOURCE.NAME)
     variable_nodes = reader.sequence(top["variables"][1], "variables") if "variables" in top else []
-    variables = list(_each(reader, variable_nodes, lambda n: read_variable(reader, n)))
+    variables = list(each(reader, variable_nodes, lambda n: read_variable(reader, n)))
     resource_nodes = reader.sequence(top["resources"][1], "resources") if "resources" in top else []
     resource_fields: list[tuple[str, Fields]] = []
     for node in resource_nodes:
@@ -310,7 +178,7 @@ def read_station(reader: Reader, top: Fields) -> Station:
         else []
     )
     specifications: list[Specification] = list(
-        _each(reader, spec_nodes, lambda n: read_specification(reader, n, scope))
+        each(reader, spec_nodes, lambda n: read_specification(reader, n, scope))
     )
     at = name_nodes(spec_nodes)
     reader.unique([(s.name, at(s.source)) for s in specifications], "specification")
@@ -383,7 +251,7 @@ def _effect_predicate(action: Assign) -> Expr:
     if action.source is not None:
         return SameValue(action.target, action.source)
     assert action.value is not None
-    return _equals(action.target, action.value)
+    return value_is(action.target, action.value)
 
 
 def _key_node(node: yaml.Node, key: str) -> yaml.Node | None:

@@ -9,7 +9,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
-from planner.expressions import Value
+from planner.model.expressions import Value
 from planner.runner.actions import Action, Reply
 from planner.runner.vocabulary import EventKind
 

@@ -1,6 +1,6 @@
 """The `bdd` engine: a query planned part by part, each part a breadth-first search.
 
-`planner.relevance` says which variables a query can matter to and which parts of the
+`planner.planning.relevance` says which variables a query can matter to and which parts of the
 station are independent for it; this module turns each active part into a `search.Problem`
 over its own variables, orders the parts' minimal plans so that their concatenation is a
 minimal plan of the whole (or plans the parts jointly when no such order exists), and
@@ -13,16 +13,16 @@ import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 
-from planner.expressions import Expr, Value, conjunction, conjuncts, variables_of
-from planner.model import TransitionKind
-from planner.planning import PlanQuery, PlanResult, PlanStatus, State
-from planner.relevance import Component, Structure, allowed_conjuncts, cone_of_influence
-from planner.search import Outcome, Problem, probe, search
-from planner.semantics import Predicate, Semantics, compile_expr
-from planner.sifting import blocks as sifting_blocks
-from planner.symbolic import Function, SymbolicModel, SymbolicTransition
-from planner.symmetry import Swapper, Symmetry, find_symmetries, neighbours
-from planner.synthesis import COUNTABLE_BITS
+from planner.bdd.sifting import blocks as sifting_blocks
+from planner.bdd.symbolic import Function, SymbolicModel, SymbolicTransition
+from planner.bdd.synthesis import COUNTABLE_BITS
+from planner.model.expressions import Expr, Value, conjunction, conjuncts, variables_of
+from planner.model.flat import TransitionKind
+from planner.model.semantics import Predicate, Semantics, compile_expr
+from planner.planning.query import PlanQuery, PlanResult, PlanStatus, State
+from planner.planning.relevance import Component, Structure, allowed_conjuncts, cone_of_influence
+from planner.planning.search import Outcome, Problem, probe, search
+from planner.planning.symmetry import Swapper, Symmetry, find_symmetries, neighbours
 
 PROBE_LAYERS = 12
 
@@ -97,7 +97,7 @@ class SymbolicPlanner:
         Neither wins everywhere: on the demo station the FORCE order halves the work of
         its long goals, on the station family the sifted one does.  A probe of
         `PROBE_LAYERS` layers predicts which (bench/planning.py); models of independent
-        blocks keep their per-block order (planner/sifting.py), where a probe would image
+        blocks keep their per-block order (planner/bdd/sifting.py), where a probe would image
         every block.  The plans do not depend on the choice, only the time.
         """
         if self.tuned:
@@ -450,7 +450,7 @@ class SymbolicPlanner:
         keep: frozenset[str],
         goal: Function,
     ) -> tuple[Swapper, ...]:
-        """The model's symmetries that this query and part keep (see `planner.symmetry`):
+        """The model's symmetries that this query and part keep (see `planner.planning.symmetry`):
         every usable transition has a usable image, the swap moves nothing outside the
         part, and the goal, `always`, the forbidden predicates and the dropped
         specifications are unchanged by it."""

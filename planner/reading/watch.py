@@ -1,37 +1,17 @@
-"""A person's watch, declared in the model: which card it shows and what a tap does.
-
-A person resource (an operator) may carry a smartwatch (seed 001 section VI-A).  The model
-says which of the person's variables is the card the station shows (a command variable),
-which is the card the person confirmed (a measured variable over the same values, `idle`
-among them), and which of the person's effects a tap on "Done" performs.  The pages and the
-devices read this declaration instead of knowing the demo's names:
-
-    - name: operator
-      kind: person
-      watch: {card: card, done: done, confirm: confirm}
-"""
+"""A person's `watch:` read from YAML and checked against the person's variables and effects
+(`planner.model.watch.Watch`)."""
 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
 
 import yaml
 
-from planner.loading import Reader
-from planner.model import Transition, TransitionKind, Variable, VariableKind
+from planner.model.flat import Transition, TransitionKind, Variable, VariableKind
+from planner.model.watch import IDLE, Watch
+from planner.reading.yaml_reader import Reader
 
 WATCH_KEYS = ("card", "done", "confirm")
-IDLE = "idle"
-
-
-@dataclass(frozen=True)
-class Watch:
-    """Qualified names: `card` (command), `done` (measured), `confirm` (an effect)."""
-
-    card: str
-    done: str
-    confirm: str
 
 
 def read_watch(

@@ -10,7 +10,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
-from planner.expressions import (
+from planner.model.expressions import (
     And,
     Assign,
     BoolVar,
@@ -23,7 +23,7 @@ from planner.expressions import (
     SameValue,
     Value,
 )
-from planner.model import Model, Transition, TransitionKind
+from planner.model.flat import Model, Transition, TransitionKind
 
 State = tuple[Value, ...]
 Predicate = Callable[[State], bool]

@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from enum import Enum
 
-from planner.expressions import TRUE, Assign, Expr, Value, format_value
+from planner.model.expressions import TRUE, Assign, Expr, Value, format_value
 
 
 class VariableKind(Enum):
@@ -51,7 +51,7 @@ class Variable:
     initial: Value
     kind: VariableKind = VariableKind.ESTIMATED
     source: SourceLocation | None = field(default=None, compare=False)
-    # words for people (planner.wording); no planner reads them
+    # words for people (planner.words); no planner reads them
     description: str = field(default="", compare=False)
     display: str = field(default="", compare=False)
     display_values: tuple[tuple[Value, str], ...] = field(default=(), compare=False)
@@ -77,7 +77,7 @@ class Transition:
     actions: tuple[Assign, ...] = ()
     source: SourceLocation | None = field(default=None, compare=False)
     description: str = field(default="", compare=False)  # plain words, for instructions
-    display: str = field(default="", compare=False)  # its name for people (planner.wording)
+    display: str = field(default="", compare=False)  # its name for people (planner.words)
 
     @property
     def written(self) -> frozenset[str]:
@@ -92,7 +92,7 @@ class Specification:
     invariant: Expr
     source: SourceLocation | None = field(default=None, compare=False)
     description: str = field(default="", compare=False)  # what it protects, in words
-    display: str = field(default="", compare=False)  # its name for people (planner.wording)
+    display: str = field(default="", compare=False)  # its name for people (planner.words)
 
 
 @dataclass(frozen=True)
