@@ -7,7 +7,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from hw.device_file import DeviceFile
+from hw.device_file.spec import DeviceFile
 from planner.model.flat import Model
 from planner.model.station import Station
 from planner.reading import load_station

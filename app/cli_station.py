@@ -153,8 +153,8 @@ def _serve_devices(
     from app.emulated_station import start_values
     from app.serve import on_devices
     from hw.emulation.launch import launch
-    from hw.emulation.process import EmulatorFailed
     from hw.emulation.world import EmulatedWorld
+    from hw.emulator_kit.process import EmulatorFailed
 
     station, _ = read_station(str(model))
     devices = device_file(args.devices, station)
@@ -217,7 +217,7 @@ def _emulated(
         return None
     from app.emulated_station import emulate, start_values
     from app.scenario import person_delay_of
-    from hw.emulation.process import EmulatorFailed
+    from hw.emulator_kit.process import EmulatorFailed
 
     devices = device_file(args.devices, station)
     start = start_values(station, scenario.start)
@@ -278,7 +278,7 @@ def emulate(args: argparse.Namespace) -> int:
     station at them with `sp serve --devices FILE`."""
     from app.emulated_station import start_values
     from hw.emulation.launch import launch
-    from hw.emulation.process import EmulatorFailed
+    from hw.emulator_kit.process import EmulatorFailed
 
     station, _ = read_station(args.model)
     devices = device_file(args.devices, station)

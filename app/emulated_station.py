@@ -14,7 +14,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-from hw.device_file import DeviceFile, load_devices
+from hw.device_file import load_devices
+from hw.device_file.spec import DeviceFile
 from hw.emulation.launch import Emulators, launch
 from hw.emulation.world import EmulatedWorld
 from hw.station_devices import StationDevices

@@ -37,7 +37,7 @@ from app.store.audit import AuditEntry
 from app.store.db import Store
 from hw.devices import Devices, Restorable
 from hw.faults import Fault, FaultInjection
-from hw.sim import SimulatedWorld
+from hw.simulated import SimulatedWorld
 from hw.station_devices import StationDevices
 from planner.model.expressions import Value
 from planner.model.station import Station

@@ -18,7 +18,7 @@ import yaml
 from app.station_cycle import ScheduledAction, ScheduledFault, StationCycle, due
 from hw.devices import Devices
 from hw.faults import FAULTS, Fault, FaultKind
-from hw.sim import SimulatedWorld
+from hw.simulated import SimulatedWorld
 from planner.model.expression_text import parse_expr
 from planner.model.expressions import Expr, Value
 from planner.model.station import Station

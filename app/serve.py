@@ -34,7 +34,7 @@ from app.user_sessions import ApiTokens
 from app.views import station_activity, task_cards
 from app.web.app import create_app
 from app.web.server import ROOT, Server, parse_networks
-from hw.device_file import DeviceFile
+from hw.device_file.spec import DeviceFile
 from hw.devices import Devices
 from hw.emulation.world import EmulatedWorld
 from hw.station_devices import StationDevices

@@ -49,12 +49,13 @@ from app.planning_worker import PlanningWorker
 from app.station_cycle import StationCycle
 from bench.planning import machine
 from bench.runner import revision
-from hw.device_file import DeviceFile, DriverKind, load_devices
+from hw.device_file import load_devices
+from hw.device_file.spec import DeviceFile, DriverKind
 from hw.devices import DeviceReport
-from hw.emulation.control import ControlError
+from hw.emulator_kit.control import ControlError
 from hw.link import LinkStatus
 from hw.ur import driver_child
-from hw.ur.emulated import free_block, on_block
+from hw.ur.emulator.launch import free_block, on_block
 from planner.model.expressions import Value
 from planner.model.flat import VariableKind
 from planner.model.station import Station
@@ -108,7 +109,7 @@ def demo_station(answer_after: float = 1.0) -> Iterator[Bench]:
 
 
 class ControlLink:
-    """A kept-open control connection (`hw.emulation.control.control` connects per request,
+    """A kept-open control connection (`hw.emulator_kit.control.control` connects per request,
     too slow to poll with)."""
 
     def __init__(self, address: tuple[str, int]) -> None:

@@ -584,7 +584,7 @@ def drive(
     after another as each finishes (over and over if `cycle`), until `ticks` ticks in all or,
     without `cycle`, the last one finished.
     """
-    from hw.sim import SimulatedWorld
+    from hw.simulated import SimulatedWorld
     from planner.runner import (
         EventKind,
         Inputs,

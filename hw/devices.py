@@ -5,7 +5,7 @@ report (`read`), hands the report to the runner, and writes the runner's command
 back (`write`).  A person's maintenance step that the runner accepted is done in the world
 too (`maintenance_done`): simulated devices apply it, emulated ones are told, real ones
 measure it.  A person's tap on a watch is an effect they `perform`.  The same interface is
-served by the simulated world (`hw.sim`) and by the drivers of a device file
+served by the simulated world (`hw.simulated`) and by the drivers of a device file
 (`hw.station_devices`), so the station loop cannot tell them apart.
 """
 

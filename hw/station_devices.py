@@ -17,14 +17,17 @@ import time
 from collections.abc import Callable, Mapping
 from typing import Protocol
 
-from hw.adapters import Adapter, RegisterAdapter, RobotAdapter, WatchAdapter
-from hw.device_file import DeviceFile, DeviceSpec, DriverKind
+from hw.adapter import Adapter
+from hw.device_file.spec import DeviceFile, DeviceSpec, DriverKind
 from hw.devices import DeviceReport
 from hw.faults import Fault
 from hw.link import LinkStatus
+from hw.modbus.adapter import RegisterAdapter
 from hw.modbus.driver import ModbusDriver
-from hw.modbus.kinds import register_map
+from hw.modbus.maps import register_map
+from hw.ur.adapter import RobotAdapter
 from hw.ur.driver import URDriver
+from hw.watch import WatchAdapter
 from planner.model.expressions import Value
 from planner.model.station import Station
 

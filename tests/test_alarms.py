@@ -23,7 +23,7 @@ from app.alarms import (
     conditions,
 )
 from app.scenario import Planners, ScheduledFault, load_scenario, play
-from hw.sim import Fault
+from hw.simulated import Fault
 from planner.model.station import Station
 from planner.planning.operation_planner import OperationPlanner
 from planner.planning.transition_planner import TransitionPlanner

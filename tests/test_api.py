@@ -14,7 +14,7 @@ from typing import Any
 import pytest
 from fastapi.testclient import TestClient
 
-from hw.sim import Fault
+from hw.simulated import Fault
 from tests.stations import RunningStation, start_station
 
 ROLES = ("operator", "engineer", "auditor", "admin")

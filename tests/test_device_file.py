@@ -7,7 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from hw.device_file import DriverKind, RobotRole, load_devices
+from hw.device_file import load_devices
+from hw.device_file.spec import DriverKind, RobotRole
 from hw.modbus.registers import Point, Table
 from planner.model.station import Station
 from planner.reading import load_station

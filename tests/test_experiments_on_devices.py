@@ -20,7 +20,7 @@ from typing import Any
 import pytest
 
 from app.scenario import load_scenario
-from hw.ur.emulated import free_block, on_block
+from hw.ur.emulator.launch import free_block, on_block
 from planner.reading import load_station
 from tests.test_runner import is_subsequence, matches
 

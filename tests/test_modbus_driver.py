@@ -13,15 +13,15 @@ from typing import Any
 
 import pytest
 
-from hw.emulation.control import control
-from hw.emulation.process import EmulatorProcess, start
+from hw.emulator_kit.control import control
+from hw.emulator_kit.process import EmulatorProcess, start
 from hw.modbus import loop
-from hw.modbus.camera import CAMERA
-from hw.modbus.connector import CONNECTOR
 from hw.modbus.driver import ModbusDriver
-from hw.modbus.nutrunner import NUTRUNNER
+from hw.modbus.emulator.camera import CAMERA
+from hw.modbus.emulator.connector import CONNECTOR
+from hw.modbus.emulator.nutrunner import NUTRUNNER
+from hw.modbus.emulator.tracker import TRACKER
 from hw.modbus.registers import Point, RegisterMap, Table
-from hw.modbus.tracker import TRACKER
 
 HOST = "127.0.2.20"
 DEVICES = {"nr": NUTRUNNER, "tc": CONNECTOR, "cam": CAMERA, "plc": TRACKER}
@@ -36,7 +36,7 @@ def emulator() -> Iterator[EmulatorProcess]:
         for name, registers in DEVICES.items()
         for a in ("--device", f"{registers.kind}:{name}:{HOST}:0")
     ]
-    process = start("hw.modbus.emulator", *args, "--delay-scale", "0.1")
+    process = start("hw.modbus.emulator.server", *args, "--delay-scale", "0.1")
     try:
         yield process
     finally:

@@ -13,9 +13,9 @@ import pytest
 from pymodbus.client import ModbusTcpClient
 from pymodbus.exceptions import ModbusException
 
-from hw.emulation.control import ControlError, control
-from hw.emulation.process import EmulatorProcess, start
-from hw.modbus.kinds import register_map
+from hw.emulator_kit.control import ControlError, control
+from hw.emulator_kit.process import EmulatorProcess, start
+from hw.modbus.maps import register_map
 from hw.modbus.registers import Table
 
 HOST = "127.0.2.10"
@@ -25,7 +25,7 @@ DEVICES = {"nr": "nutrunner", "tc": "connector", "cam": "camera", "plc": "tracke
 @pytest.fixture(scope="module")
 def emulator() -> Iterator[EmulatorProcess]:
     args = [a for name, kind in DEVICES.items() for a in ("--device", f"{kind}:{name}:{HOST}:0")]
-    process = start("hw.modbus.emulator", *args, "--delay-scale", "0.1")
+    process = start("hw.modbus.emulator.server", *args, "--delay-scale", "0.1")
     try:
         yield process
     finally:
@@ -341,7 +341,7 @@ def test_freeze_stops_logic_and_heartbeat_and_thaw_goes_on(
 
 
 def test_sigterm_ends_the_process_cleanly() -> None:
-    process = start("hw.modbus.emulator", "--device", f"tracker:plc:{HOST}:0")
+    process = start("hw.modbus.emulator.server", "--device", f"tracker:plc:{HOST}:0")
     try:
         process.stop()
         assert process.process.returncode == 0
@@ -354,7 +354,7 @@ def test_bad_arguments_are_refused_with_a_usage_error() -> None:
     import sys
 
     done = subprocess.run(
-        [sys.executable, "-m", "hw.modbus.emulator", "--device", "toaster:t:127.0.2.10:0"],
+        [sys.executable, "-m", "hw.modbus.emulator.server", "--device", "toaster:t:127.0.2.10:0"],
         capture_output=True,
         text=True,
         timeout=20,

@@ -10,14 +10,15 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hw.modbus.camera import CAMERA, Camera
-from hw.modbus.connector import Connector, LockFault
 from hw.modbus.driver import LIMITS, plan_reads
-from hw.modbus.kinds import KINDS, register_map
-from hw.modbus.logic import DeviceLogic, Shots
-from hw.modbus.nutrunner import NUTRUNNER, Nutrunner
+from hw.modbus.emulator.camera import CAMERA, Camera
+from hw.modbus.emulator.connector import Connector, LockFault
+from hw.modbus.emulator.kinds import KINDS
+from hw.modbus.emulator.logic import DeviceLogic, Shots
+from hw.modbus.emulator.nutrunner import NUTRUNNER, Nutrunner
+from hw.modbus.emulator.tracker import Tracker
+from hw.modbus.maps import register_map
 from hw.modbus.registers import Kind, Point, Table, decode, encode, markdown
-from hw.modbus.tracker import Tracker
 
 FAST = {"spin_up": 0.5, "tighten": 2.0, "stop": 0.5}
 

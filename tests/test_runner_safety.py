@@ -14,7 +14,7 @@ import pytest
 from app.scenario import Planners, load_scenario, play
 from app.station_cycle import ScheduledFault, StationCycle
 from hw.faults import Fault, FaultKind
-from hw.sim import SimulatedWorld
+from hw.simulated import SimulatedWorld
 from planner.model.expression_text import parse_expr
 from planner.model.expressions import Value
 from planner.planning.operation_planner import OperationPlanner

@@ -13,7 +13,7 @@ from typing import Any
 
 import httpx
 
-from hw.ur.emulated import free_block, on_block
+from hw.ur.emulator.launch import free_block, on_block
 from tests.stations import form_token, sign_in_with_forms
 from tests.test_browser_operator import WATCH, operate, sign_in_first_time
 from tests.test_durability import ROOT, Serve

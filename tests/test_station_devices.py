@@ -19,9 +19,10 @@ import pytest
 
 from app.emulated_station import EmulatedStation, emulate, start_values
 from app.station_cycle import StationCycle
-from hw.device_file import DeviceFile, load_devices
+from hw.device_file import load_devices
+from hw.device_file.spec import DeviceFile
 from hw.faults import Fault, FaultKind
-from hw.ur.emulated import free_block, on_block
+from hw.ur.emulator.launch import free_block, on_block
 from planner.model.station import Station
 from planner.planning.operation_planner import OperationPlanner
 from planner.planning.transition_planner import TransitionPlanner

@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hw.ur.arm import Arm
+from hw.ur.emulator.arm import Arm
 
 DT = 0.008
 TOLERANCE = 1e-9

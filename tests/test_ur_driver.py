@@ -18,10 +18,10 @@ from typing import Any
 
 import pytest
 
-from hw.emulation.control import control
+from hw.emulator_kit.control import control
 from hw.ur import driver_child
 from hw.ur.driver import URDriver
-from hw.ur.emulated import emulate, free_host, host_range
+from hw.ur.emulator.launch import emulate, free_host, host_range
 
 HOSTS = host_range(121, 250)
 JOINTS = [0.1, -1.5, 1.4, -1.2, -1.5, 0.2]

@@ -23,9 +23,9 @@ import rtde_control
 import rtde_io
 import rtde_receive
 
-from hw.emulation.control import ControlError, control
-from hw.ur import rtde_wire as wire
-from hw.ur.emulated import emulate, free_host, host_range
+from hw.emulator_kit.control import ControlError, control
+from hw.ur.emulator import rtde_wire as wire
+from hw.ur.emulator.launch import emulate, free_host, host_range
 
 HOSTS = host_range(2, 120)
 JOINTS = [0.1, -1.5, 1.4, -1.2, -1.5, 0.2]

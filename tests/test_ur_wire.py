@@ -10,13 +10,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hw.pipelines import Nonsense
-from hw.ur import rtde_wire as wire
-from hw.ur.arm import Arm
-from hw.ur.control_script import parse_program
-from hw.ur.dashboard import answer
-from hw.ur.reading import reading_from
-from hw.ur.robot import Controller, RobotMode, RuntimeState
-from hw.ur.script_server import Programs
+from hw.ur.emulator import rtde_wire as wire
+from hw.ur.emulator.arm import Arm
+from hw.ur.emulator.control_script import parse_program
+from hw.ur.emulator.dashboard import answer
+from hw.ur.emulator.robot import Controller, RobotMode, RuntimeState
+from hw.ur.emulator.script_server import Programs
+from hw.ur.sample import reading_from
 
 RTDE_SCRIPT = (
     "def rtde_control():\n# HEADER_BEGIN\n"

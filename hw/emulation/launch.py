@@ -1,8 +1,8 @@
 """Starting the emulators of a device file (`sp emulate`, the demo, tests).
 
-One process per device: a UR controller emulator per robot (`hw.ur.controller`, on the
+One process per device: a UR controller emulator per robot (`hw.ur.emulator.controller`, on the
 robot's own loopback address, since ur_rtde's ports are fixed) and a Modbus emulator per
-Modbus device (`hw.modbus.emulator`, serving the documented map the device file names).
+Modbus device (`hw.modbus.emulator.server`, serving the documented map the device file names).
 Robots start at the named pose of their start value, the PLC with the start values it
 reports.  `launch` returns the device file as the station must see it (with the ports the
 emulators really bound, which differ from the file's when tests ask for any free port) and
@@ -15,11 +15,11 @@ from collections.abc import Mapping
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 
-from hw.device_file import DeviceFile, DeviceSpec, DriverKind, RobotRole
-from hw.emulation.control import control
-from hw.emulation.process import EmulatorFailed, EmulatorProcess, start
+from hw.device_file.spec import DeviceFile, DeviceSpec, DriverKind, RobotRole
 from hw.emulation.scene import Scene
-from hw.modbus.kinds import register_map
+from hw.emulator_kit.control import control
+from hw.emulator_kit.process import EmulatorFailed, EmulatorProcess, start
+from hw.modbus.maps import register_map
 from planner.model.expressions import Value
 
 
@@ -81,11 +81,11 @@ def _start(
     if device.driver is DriverKind.UR:
         joints = _start_joints(device, start_values)
         args = ["--host", device.host, "--control-port", str(control_port)]
-        return start("hw.ur.controller", *args, "--joints", ",".join(map(str, joints)))
+        return start("hw.ur.emulator.controller", *args, "--joints", ",".join(map(str, joints)))
     port = 0 if any_port else device.port
     spec = f"{device.map}:{device.name}:{device.host}:{port}:{device.unit}"
     return start(
-        "hw.modbus.emulator", "--device", spec, "--control", f"{device.host}:{control_port}"
+        "hw.modbus.emulator.server", "--device", spec, "--control", f"{device.host}:{control_port}"
     )
 
 

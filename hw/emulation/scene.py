@@ -14,8 +14,8 @@ import logging
 import threading
 from collections.abc import Mapping
 
-from hw.device_file import DeviceFile, DriverKind
-from hw.emulation.control import ControlError, control
+from hw.device_file.spec import DeviceFile, DriverKind
+from hw.emulator_kit.control import ControlError, control
 from hw.pipelines import UNKNOWN, Nonsense
 
 log = logging.getLogger(__name__)

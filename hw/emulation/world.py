@@ -26,10 +26,10 @@ import threading
 from collections.abc import Mapping
 from typing import Any
 
-from hw.device_file import DeviceFile, DeviceSpec, DriverKind, RobotRole
-from hw.emulation.control import ControlError, control
+from hw.device_file.spec import DeviceFile, DeviceSpec, DriverKind, RobotRole
+from hw.emulator_kit.control import ControlError, control
 from hw.faults import Fault, FaultKind
-from hw.modbus.kinds import register_map
+from hw.modbus.maps import register_map
 from planner.model.expressions import Value
 from planner.model.flat import VariableKind
 from planner.model.semantics import Semantics

@@ -1,6 +1,8 @@
-"""Universal Robots: an emulated controller (`hw.ur.controller`) and the station's driver.
+"""Universal Robots: the station's driver and adapter, and an emulated controller.
 
-The emulator speaks enough RTDE, dashboard and script-port protocol for the unmodified ur_rtde
-clients; the driver (`hw.ur.driver.URDriver`) runs those clients in a supervised child process.
-See docs/ur_emulator.md.
+- `driver`: runs the unmodified ur_rtde clients in a supervised child process
+  (`driver_child`), one `sample` per reading;
+- `adapter`: joints to the model's named poses, named poses to moveJ;
+- `emulator/`: enough RTDE, dashboard and script-port protocol for those clients
+  (docs/ur_emulator.md).
 """

@@ -27,7 +27,7 @@ from typing import Any
 from hw.link import LinkStatus
 from hw.pipelines import Nonsense
 from hw.ur import driver_child
-from hw.ur.reading import URReading, reading_from
+from hw.ur.sample import URReading, reading_from
 
 BACKOFF_FIRST = 0.2
 BACKOFF_MOST = 2.0

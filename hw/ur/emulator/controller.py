@@ -1,13 +1,14 @@
 """An emulated UR10 controller (CB3, PolyScope 3.15.7) as its own process.
 
-    python -m hw.ur.controller --host 127.0.0.2 [--control-port 30100]
+    python -m hw.ur.emulator.controller --host 127.0.0.2 [--control-port 30100]
         [--joints q1,...,q6] [--version 3.15.7]
 
 It listens on the client's fixed ports on `--host`: RTDE 30004, dashboard 29999, script 30003,
-plus the control channel (`hw.emulation.control`; `--control-port 0` takes any free port),
+plus the control channel (`hw.emulator_kit.control`; `--control-port 0` takes any free port),
 prints `{"ready": true, "ports": {...}}` once everything listens, and ends on SIGTERM.  The
 controller cycle runs at 125 Hz (500 Hz for a version ≥ 5) while a client streams or the arm
-moves, and slower when nothing happens.  The faults it plays on demand are in `hw.ur.faults`.
+moves, and slower when nothing happens.  The faults it plays on demand are in
+`hw.ur.emulator.faults`.
 """
 
 from __future__ import annotations
@@ -23,14 +24,14 @@ import time
 from collections.abc import Sequence
 from typing import Any
 
-from hw.emulation.control import serve_control
-from hw.emulation.process import exit_with_parent
-from hw.ur import dashboard
-from hw.ur.arm import Arm
-from hw.ur.faults import handle
-from hw.ur.robot import Controller
-from hw.ur.rtde_server import RtdeSession
-from hw.ur.script_server import Programs
+from hw.emulator_kit.control import serve_control
+from hw.emulator_kit.process import exit_with_parent
+from hw.ur.emulator import dashboard
+from hw.ur.emulator.arm import Arm
+from hw.ur.emulator.faults import handle
+from hw.ur.emulator.robot import Controller
+from hw.ur.emulator.rtde_server import RtdeSession
+from hw.ur.emulator.script_server import Programs
 
 log = logging.getLogger(__name__)
 
@@ -194,7 +195,9 @@ class Emulator:
 
 
 def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(prog="python -m hw.ur.controller", description=__doc__)
+    parser = argparse.ArgumentParser(
+        prog="python -m hw.ur.emulator.controller", description=__doc__
+    )
     parser.add_argument("--host", default="127.0.0.2")
     parser.add_argument("--control-port", type=int, default=0)
     parser.add_argument("--joints", default=",".join(str(q) for q in HOME))

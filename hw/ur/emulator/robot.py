@@ -19,9 +19,9 @@ from dataclasses import dataclass, field
 from enum import IntEnum
 from typing import Any
 
-from hw.ur.arm import Arm
-from hw.ur.control_script import ControlScript, parse_program
-from hw.ur.rtde_wire import OUTPUTS, VECTOR_SIZES
+from hw.ur.emulator.arm import Arm
+from hw.ur.emulator.control_script import ControlScript, parse_program
+from hw.ur.emulator.rtde_wire import OUTPUTS, VECTOR_SIZES
 
 
 class RobotMode(IntEnum):

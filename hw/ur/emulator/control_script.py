@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from hw.ur.robot import Controller
+    from hw.ur.emulator.robot import Controller
 
 READY, DONE = 1, 2
 MOVE_J, MOVE_J_IK, MOVE_L, MOVE_L_FK = 1, 2, 3, 4

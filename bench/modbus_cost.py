@@ -1,7 +1,7 @@
 """How much the Modbus drivers cost: CPU of this process and poll latency, with the
 station's seven Modbus devices emulated in another process.
 
-    python -m hw.modbus.measure [--seconds 10] [--period 0.05] [--host 127.0.2.30]
+    python -m bench.modbus_cost [--seconds 10] [--period 0.05] [--host 127.0.2.30]
 
 Every driver polls every point of its device's map (one request per table) and watches its
 heartbeat; the emulator runs in its own process, so only the drivers' cost is counted.
@@ -15,9 +15,9 @@ import statistics
 import time
 from collections.abc import Sequence
 
-from hw.emulation.process import start
+from hw.emulator_kit.process import start
 from hw.modbus.driver import ModbusDriver
-from hw.modbus.kinds import register_map
+from hw.modbus.maps import register_map
 
 STATION = (
     ("nutrunner", "nr"),
@@ -32,7 +32,7 @@ STATION = (
 
 def measure(seconds: float, period: float, host: str) -> dict[str, float]:
     args = [a for kind, name in STATION for a in ("--device", f"{kind}:{name}:{host}:0")]
-    emulator = start("hw.modbus.emulator", *args)
+    emulator = start("hw.modbus.emulator.server", *args)
     drivers = []
     try:
         for kind, name in STATION:
@@ -70,7 +70,7 @@ def measure(seconds: float, period: float, host: str) -> dict[str, float]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m hw.modbus.measure", description=__doc__)
+    parser = argparse.ArgumentParser(prog="python -m bench.modbus_cost", description=__doc__)
     parser.add_argument("--seconds", type=float, default=10.0)
     parser.add_argument("--period", type=float, default=0.05)
     parser.add_argument("--host", default="127.0.2.30")

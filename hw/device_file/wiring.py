@@ -11,7 +11,7 @@ from collections.abc import Sequence
 
 import yaml
 
-from hw.device_file import DeviceSpec
+from hw.device_file.spec import DeviceSpec
 from planner.model.flat import VariableKind
 from planner.model.station import Station
 from planner.reading.yaml_reader import Reader

@@ -16,37 +16,8 @@ import enum
 from collections.abc import Mapping
 from typing import Any, ClassVar
 
-from hw.modbus.logic import DeviceLogic, Shots
-from hw.modbus.registers import Kind, Point, Register, RegisterMap, Table, heartbeat, status_word
-
-STATUS_BITS = ("connected", "not_connected", "failure")
-
-CONNECTOR = RegisterMap(
-    "connector",
-    "tool-changer connector: lock and unlock commands, connection sensors, failure",
-    (
-        Register("lock", Point(Table.COIL, 0), Kind.BOOL, "command: lock onto the tool", False),
-        Register("unlock", Point(Table.COIL, 1), Kind.BOOL, "command: let the tool go", True),
-        Register(
-            "reset", Point(Table.COIL, 2), Kind.BOOL, "rising edge: clear the failure bit", False
-        ),
-        Register(
-            "connected", Point(Table.DISCRETE_INPUT, 0), Kind.BOOL, "a tool is locked on", False
-        ),
-        Register(
-            "not_connected", Point(Table.DISCRETE_INPUT, 1), Kind.BOOL, "no tool locked on", True
-        ),
-        Register(
-            "failure",
-            Point(Table.DISCRETE_INPUT, 2),
-            Kind.BOOL,
-            "a lock failed; locking is blocked until a reset",
-            False,
-        ),
-        heartbeat(),
-        status_word(STATUS_BITS, 2),
-    ),
-)
+from hw.modbus.emulator.logic import DeviceLogic, Shots
+from hw.modbus.maps import CONNECTOR
 
 
 class Phase(enum.Enum):

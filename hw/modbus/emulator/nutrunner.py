@@ -19,60 +19,10 @@ import math
 from collections.abc import Mapping
 from typing import Any, ClassVar
 
-from hw.modbus.logic import DeviceLogic, Shots
-from hw.modbus.registers import Kind, Point, Register, RegisterMap, Table, heartbeat, status_word
+from hw.modbus.emulator.logic import DeviceLogic, Shots
+from hw.modbus.maps import NUTRUNNER, NUTRUNNER_STATUS_BITS
 
-STATUS_BITS = ("is_idle", "is_running", "torque_reached", "nok")
 NOK_TORQUE = 0.6  # share of the target torque where a NOK tightening stops
-
-NUTRUNNER = RegisterMap(
-    "nutrunner",
-    "smart nutrunner: run and idle commands, tightening result, torque",
-    (
-        Register("set_idle", Point(Table.COIL, 0), Kind.BOOL, "command: stop and idle", True),
-        Register("run_forward", Point(Table.COIL, 1), Kind.BOOL, "command: run (tighten)", False),
-        Register("is_idle", Point(Table.DISCRETE_INPUT, 0), Kind.BOOL, "idle", True),
-        Register("is_running", Point(Table.DISCRETE_INPUT, 1), Kind.BOOL, "spinning", False),
-        Register(
-            "torque_reached",
-            Point(Table.DISCRETE_INPUT, 2),
-            Kind.BOOL,
-            "the tightening reached the target torque",
-            False,
-        ),
-        Register(
-            "nok",
-            Point(Table.DISCRETE_INPUT, 3),
-            Kind.BOOL,
-            "the tightening ended without reaching the target torque",
-            False,
-        ),
-        Register(
-            "target_torque",
-            Point(Table.HOLDING_REGISTER, 0),
-            Kind.UNSIGNED,
-            "torque to tighten to",
-            25.0,
-            scale=0.1,
-            unit="Nm",
-            low=0.0,
-            high=100.0,
-        ),
-        heartbeat(),
-        status_word(STATUS_BITS, 1),
-        Register(
-            "torque",
-            Point(Table.INPUT_REGISTER, 2),
-            Kind.UNSIGNED,
-            "measured torque",
-            0.0,
-            scale=0.1,
-            unit="Nm",
-            low=0.0,
-            high=100.0,
-        ),
-    ),
-)
 
 
 class Phase(enum.Enum):
@@ -120,7 +70,7 @@ class Nutrunner(DeviceLogic):
         elif self.phase is Phase.STOPPING and now >= due:
             self._enter(Phase.IDLE, due)
             self._torque(0.0)
-            for name, on in zip(STATUS_BITS, (True, False, False, False), strict=True):
+            for name, on in zip(NUTRUNNER_STATUS_BITS, (True, False, False, False), strict=True):
                 self.flag(name, on)
         else:
             if self.phase is Phase.TIGHTENING:

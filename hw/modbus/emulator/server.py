@@ -1,17 +1,17 @@
 """Modbus TCP devices in one process, each on its own address, with faults on demand.
 
-    python -m hw.modbus.emulator --device nutrunner:nr:127.0.0.20:1502 \\
+    python -m hw.modbus.emulator.server --device nutrunner:nr:127.0.0.20:1502 \\
         --device connector:r1_tc:127.0.0.21:1502:1 [--control 127.0.0.20:1600]
 
 Each `--device KIND:NAME:HOST:PORT[:DEVICE_ID]` gets a pymodbus TCP server (port 0: any free
-one) serving the kind's register map (`hw.modbus.kinds`) with its logic; unit id
+one) serving the kind's register map (`hw.modbus.emulator.kinds`) with its logic; unit id
 `DEVICE_ID` (default 1), any other unit id is answered with exception 11 (gateway target
 failed to respond).  Once every server listens it prints one line,
 `{"ready": true, "ports": {NAME: PORT, ..., "control": PORT}}`, and serves until SIGTERM.
 
-The control channel (`hw.emulation.control`, default on the first device's host, any free
+The control channel (`hw.emulator_kit.control`, default on the first device's host, any free
 port) takes `{"op": OP, "device": NAME, ...}`; `device` may be left out when the process
-serves one device.  The operations are in `hw.modbus.operations`, with their JSON in
+serves one device.  The operations are in `hw.modbus.emulator.operations`, with their JSON in
 `docs/modbus_devices.md`.
 
 The device's logic steps on every request and every control operation, at the emulator's
@@ -35,11 +35,11 @@ from pymodbus.constants import ExcCodes
 from pymodbus.server import ModbusTcpServer
 from pymodbus.simulator import DataType, SimData, SimDevice
 
-from hw.emulation.control import serve_control
-from hw.emulation.process import exit_with_parent
-from hw.modbus.kinds import KINDS
-from hw.modbus.logic import DeviceLogic
-from hw.modbus.operations import OPERATIONS
+from hw.emulator_kit.control import serve_control
+from hw.emulator_kit.process import exit_with_parent
+from hw.modbus.emulator.kinds import KINDS
+from hw.modbus.emulator.logic import DeviceLogic
+from hw.modbus.emulator.operations import OPERATIONS
 from hw.modbus.registers import Point, RegisterMap, Table
 
 log = logging.getLogger(__name__)
@@ -325,7 +325,9 @@ async def serve(specs: Sequence[DeviceSpec], control: tuple[str, int], scale: fl
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m hw.modbus.emulator", description=__doc__)
+    parser = argparse.ArgumentParser(
+        prog="python -m hw.modbus.emulator.server", description=__doc__
+    )
     parser.add_argument("--device", action="append", required=True, metavar="KIND:NAME:HOST:PORT")
     parser.add_argument("--control", metavar="HOST:PORT", help="default: first device's host")
     parser.add_argument(

@@ -13,10 +13,10 @@ import asyncio
 import logging
 from typing import TYPE_CHECKING, Any
 
-from hw.ur import rtde_wire as wire
+from hw.ur.emulator import rtde_wire as wire
 
 if TYPE_CHECKING:
-    from hw.ur.controller import Emulator
+    from hw.ur.emulator.controller import Emulator
 
 log = logging.getLogger(__name__)
 

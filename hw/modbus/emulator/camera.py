@@ -14,53 +14,11 @@ import enum
 from collections.abc import Mapping
 from typing import Any, ClassVar
 
-from hw.modbus.logic import DeviceLogic, Shots
-from hw.modbus.registers import Kind, Point, Register, RegisterMap, Table, heartbeat, status_word
+from hw.modbus.emulator.logic import DeviceLogic, Shots
+from hw.modbus.maps import CAMERA, CAMERA_POSE
 
-STATUS_BITS = ("located", "missed", "busy")
-POSE = ("x", "y", "z", "rx", "ry", "rz")
 Pose = tuple[float, float, float, float, float, float]
 DEFAULT_SCENE: Pose = (412.5, -120.0, 305.2, 0.0, 3.1416, 0.0)
-
-
-def _pose_registers() -> tuple[Register, ...]:
-    registers = []
-    for k, name in enumerate(POSE):
-        linear = k < 3
-        registers.append(
-            Register(
-                name,
-                Point(Table.INPUT_REGISTER, 2 + k),
-                Kind.SIGNED,
-                f"located tool pose: {'position' if linear else 'rotation vector'} {name}",
-                0.0,
-                scale=0.1 if linear else 0.001,
-                unit="mm" if linear else "rad",
-            )
-        )
-    return tuple(registers)
-
-
-CAMERA = RegisterMap(
-    "camera",
-    "3D camera: trigger, located or missed, the located tool's pose",
-    (
-        Register("trigger", Point(Table.COIL, 0), Kind.BOOL, "command: scan (level)", False),
-        Register(
-            "located", Point(Table.DISCRETE_INPUT, 0), Kind.BOOL, "the scan found the tool", False
-        ),
-        Register(
-            "missed", Point(Table.DISCRETE_INPUT, 1), Kind.BOOL, "the scan found nothing", False
-        ),
-        Register("busy", Point(Table.DISCRETE_INPUT, 2), Kind.BOOL, "scanning", False),
-        heartbeat(),
-        status_word(STATUS_BITS, 0),
-        *_pose_registers(),
-        Register(
-            "scans", Point(Table.INPUT_REGISTER, 8), Kind.COUNTER, "scans finished since power-on"
-        ),
-    ),
-)
 
 
 class Phase(enum.Enum):
@@ -112,13 +70,13 @@ class Camera(DeviceLogic):
         self.phase, self.since = phase, at
 
     def _show(self, pose: tuple[float, ...]) -> None:
-        for name, value in zip(POSE, pose, strict=True):
+        for name, value in zip(CAMERA_POSE, pose, strict=True):
             register = self.register_map[name]
             self.put(name, round(value / register.scale) & 0xFFFF)
 
     def see(self, pose: Pose) -> None:
         """Where the tool is, for the next scans (checked against the registers' range)."""
-        for name, value in zip(POSE, pose, strict=True):
+        for name, value in zip(CAMERA_POSE, pose, strict=True):
             low, high = self.register_map[name].range()
             if not low <= value <= high:
                 raise ValueError(f"pose {name} {value} is outside {low:g}..{high:g}")

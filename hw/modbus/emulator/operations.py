@@ -8,14 +8,14 @@ from __future__ import annotations
 from collections.abc import Awaitable, Callable
 from typing import TYPE_CHECKING, Any, TypeVar
 
-from hw.modbus.camera import Camera
-from hw.modbus.connector import Connector, LockFault
-from hw.modbus.logic import DeviceLogic, Shots
-from hw.modbus.nutrunner import Nutrunner
+from hw.modbus.emulator.camera import Camera
+from hw.modbus.emulator.connector import Connector, LockFault
+from hw.modbus.emulator.logic import DeviceLogic, Shots
+from hw.modbus.emulator.nutrunner import Nutrunner
 from hw.modbus.registers import encode
 
 if TYPE_CHECKING:
-    from hw.modbus.emulator import EmulatedDevice
+    from hw.modbus.emulator.server import EmulatedDevice
 
 L = TypeVar("L", bound=DeviceLogic)
 GARBAGE_KINDS = ("noise", "function", "short", "wrong_id")

@@ -10,10 +10,10 @@ import math
 from collections.abc import Awaitable, Callable
 from typing import TYPE_CHECKING, Any
 
-from hw.ur.robot import RobotMode, RuntimeState, SafetyMode
+from hw.ur.emulator.robot import RobotMode, RuntimeState, SafetyMode
 
 if TYPE_CHECKING:
-    from hw.ur.controller import Emulator
+    from hw.ur.emulator.controller import Emulator
 
 Operation = Callable[["Emulator", dict[str, Any]], Awaitable[dict[str, Any]]]
 
