@@ -18,22 +18,23 @@ from pathlib import Path
 from fastapi import FastAPI
 from sqlalchemy.orm import Session
 
-from app import supervisor_cache
-from app.auth import seed_demo_users
-from app.live_station import DeviceSetup, LiveStation
-from app.scenario import Scenario, ScenarioError, load_scenario
-from app.station_view import build_model
+from app.pages.cards import station_activity, task_cards
+from app.people.auth import seed_demo_users
+from app.people.sessions import ApiTokens
+from app.people.throttle import SignInThrottle
+from app.station import supervisor_cache
+from app.station.experiments import experiments
+from app.station.live import DeviceSetup, LiveStation
+from app.station.scenario import Scenario
+from app.station.view import build_model
 from app.store import audit, versions
 from app.store.audit import AuditEntry
 from app.store.checkpoints import Checkpointer
 from app.store.db import open_store
 from app.store.keys import default_key_path
 from app.store.sealing import seal_store
-from app.throttle import SignInThrottle
-from app.user_sessions import ApiTokens
-from app.views import station_activity, task_cards
 from app.web.app import create_app
-from app.web.server import ROOT, Server, parse_networks
+from app.web.server import Server, parse_networks
 from hw.device_file.spec import DeviceFile
 from hw.devices import Devices
 from hw.emulation.world import EmulatedWorld
@@ -42,7 +43,6 @@ from planner.model.expressions import Value
 from planner.model.station import Station
 
 log = logging.getLogger(__name__)
-SCENARIOS = ROOT / "models" / "scenarios"
 
 
 @dataclass
@@ -160,29 +160,3 @@ def _station_name(text: str, path: Path) -> str:
 
 def default_cache() -> Path:
     return supervisor_cache.default_directory()
-
-
-TITLES = {
-    "e1_bolt_undone": "E1: a tightened bolt pair is undone by hand",
-    "e2_oil_filter_early": "E2: oil filters mounted before the bolts are tightened",
-    "e3_lock_fails_on_attach": "E3: r1's tool lock never confirms",
-    "e4_lock_fails_on_release": "E4: r1's tool release never confirms",
-    "e5_r2_disconnects_clear": "E5: r2 stops answering, at home",
-    "e6_r2_disconnects_above_engine": "E6: r2 stops answering above the engine",
-    "e7_r2_disconnects_holding_tool": "E7: r2 stops answering holding the nutrunner",
-    "e8_camera_miss": "E8: the camera does not find the tool",
-    "e9_torque_not_reached": "E9: the nutrunner does not reach its torque",
-}
-
-
-def experiments(station: Station) -> dict[str, tuple[str, Scenario]]:
-    """The E1-E9 scenarios, for the simulation panel (those that fit the active model)."""
-    found: dict[str, tuple[str, Scenario]] = {}
-    for path in sorted(SCENARIOS.glob("e*.yaml")):
-        try:
-            scenario = load_scenario(path.read_text(encoding="utf-8"), str(path), station)
-        except ScenarioError as exc:
-            log.warning("experiment %s does not fit the model: %s", path.name, exc)
-            continue
-        found[path.stem] = (TITLES.get(path.stem, path.stem), scenario)
-    return found

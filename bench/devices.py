@@ -14,9 +14,10 @@ process per robot, pymodbus clients on the shared loop).  Measured, in this orde
 2. measurement to runner: from asking the emulator to change (a robot jogged to a named pose,
    the PLC's bp1.state set) until `StationDevices.read()`, called every 10 ms, reports it;
 3. the station loop: the demo's runner on the devices (`StationCycle`), planning in a
-   worker process beside the loop as the live station plans (`app.planning_worker`), intention
-   assemble_engine started and the watch answered after 1 s, a round every 0.1 s for
-   `--seconds`: the period between round starts and each round's duration;
+   worker process beside the loop as the live station plans
+   (`app.station.planning_worker`), intention assemble_engine started and the watch
+   answered after 1 s, a round every 0.1 s for `--seconds`: the period between round
+   starts and each round's duration;
 4. CPU over that loop's window, from /proc (utime + stime): each emulator, each ur_rtde child,
    and the station process's threads; the main thread's device calls (advance, read, write)
    by `time.thread_time()` around them.  The device layer is the station side only: the
@@ -44,9 +45,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from app.emulated_station import EmulatedStation, emulate, start_values
-from app.planning_worker import PlanningWorker
-from app.station_cycle import StationCycle
+from app.station.cycle import StationCycle
+from app.station.emulated import EmulatedStation, emulate, start_values
+from app.station.planning_worker import PlanningWorker
 from bench.planning import machine
 from bench.runner import revision
 from hw.device_file import load_devices

@@ -70,7 +70,7 @@ if workload == "searches":
         assert planner.plan(query).found
         elapsed += time.process_time() - began
 else:
-    from app.scenario import Planners, load_scenario, play
+    from app.station.scenario import Planners, load_scenario, play
     from planner.planning.operation_planner import OperationPlanner
     from planner.model.station import load_station
     station = load_station(open("models/demo_station.yaml").read(), "demo.yaml")

@@ -119,7 +119,8 @@ def describe(event: Event) -> str:
 
 
 def run_experiment(station: Any, planners: Any, path: Path, runs: int) -> Experiment:
-    from app.scenario import load_scenario, play
+    from app.station.player import play
+    from app.station.scenario import load_scenario
 
     key = path.name.split("_")[0]
     scenario = load_scenario(path.read_text(), str(path), station)
@@ -264,7 +265,7 @@ class QueryReporter:
 def child_play(model: Path, scenario: Path) -> int:
     """Child process: `sp run MODEL --scenario FILE --speed 0 --json --quiet`, with the
     runner's planning queries reported on the same stream (lines with a `bench` key)."""
-    from app.cli import main as sp
+    from app.cli.main import main as sp
 
     def emit(record: dict[str, Any]) -> None:
         print(json.dumps(record), flush=True)
@@ -349,7 +350,7 @@ def read_play(lines: Sequence[str], scenario: str, until: float, cut: float | No
 
 def warm_cache(model: Path, directory: Path, limit: float) -> float:
     """Synthesise the model's supervisor into `directory` (what `sp` caches); seconds taken."""
-    command = [sys.executable, "-m", "app.cli", "plan", str(model), "--goal", "true", "--json"]
+    command = [sys.executable, "-m", "app.cli.main", "plan", str(model), "--goal", "true", "--json"]
     run = process.run(command, limit, cwd=ROOT, env={"SP_CACHE_DIR": str(directory)})
     if run.returncode != 0:
         reason = "timed out" if run.timed_out else run.stderr.strip()[-500:]
@@ -387,7 +388,7 @@ def play_scenarios(
 ) -> tuple[list[list[Play]], float]:
     """Every scenario played `runs` times (once if it was cut off or failed), and how long
     the supervisor synthesis the plays start from took."""
-    from app.scenario import load_scenario
+    from app.station.scenario import load_scenario
     from planner.reading import load_station
 
     station = load_station(model.read_text(), str(model))
@@ -578,7 +579,7 @@ def drive(
     step: float = 0.1,
     profile: bool = False,
 ) -> Iterator[Tick]:
-    """The loop of app.scenario.play, timing `Runner.tick` alone (not the simulated world).
+    """The loop of app.station.player.play, timing `Runner.tick` alone (not the simulated world).
 
     `idle` ticks with no intention armed come first; then the intentions are started one
     after another as each finishes (over and over if `cycle`), until `ticks` ticks in all or,
@@ -637,7 +638,7 @@ def drive(
 
 def build_cells(count: int, emit: Callable[[dict[str, Any]], None]) -> tuple[Any, Any]:
     """Station and planners for `count` cells, each stage's time emitted as it ends."""
-    from app.scenario import Planners
+    from app.station.player import Planners
     from planner.planning.operation_planner import OperationPlanner
     from planner.planning.transition_planner import TransitionPlanner
     from planner.reading import load_station
@@ -929,7 +930,7 @@ def run_size(
 
 
 def demo_ticks(station: Any, planners: Any, idle: int, synthesis: float, build: float) -> Size:
-    from app.scenario import load_scenario
+    from app.station.scenario import load_scenario
 
     path = SCENARIOS / "nominal.yaml"
     scenario = load_scenario(path.read_text(), str(path), station)
@@ -968,7 +969,8 @@ def profile_ticks(transitions: int, ticks: int, idle: int, top: int = 15) -> Non
         names = [cells.intention(c) for c in cells.cell_names(count)]
         run = drive(station, planners, names, ticks=ticks, idle=idle, cycle=True, profile=True)
     else:
-        from app.scenario import Planners, load_scenario
+        from app.station.player import Planners
+        from app.station.scenario import load_scenario
         from planner.planning.operation_planner import OperationPlanner
         from planner.planning.transition_planner import TransitionPlanner
         from planner.reading import load_station
@@ -1089,7 +1091,7 @@ def main() -> None:
     if args.recovery_only:
         args.sizes = []
 
-    from app.scenario import Planners
+    from app.station.player import Planners
     from planner.planning.operation_planner import OperationPlanner
     from planner.planning.transition_planner import TransitionPlanner
     from planner.reading import load_station

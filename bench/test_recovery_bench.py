@@ -13,7 +13,7 @@ from typing import Any
 import pytest
 import yaml
 
-from app.scenario import ScenarioError, load_scenario
+from app.station.scenario import ScenarioError, load_scenario
 from bench.runner import (
     BENCH_SCENARIOS,
     DEMO,

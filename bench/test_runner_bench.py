@@ -5,7 +5,7 @@ No timing is asserted; the benchmark measures, this only checks that what it mea
 
 from __future__ import annotations
 
-from app.scenario import Planners
+from app.station.player import Planners
 from bench import cells
 from bench.runner import drive, match_paper
 from planner.planning.operation_planner import OperationPlanner

@@ -31,7 +31,7 @@ PASSWORD = "engineer-bench-pw"
 
 
 def start_server(directory: Path, port: int) -> subprocess.Popen[bytes]:
-    command = [sys.executable, "-m", "app.cli", "serve", "--db", f"sqlite:///{directory}/b.db"]
+    command = [sys.executable, "-m", "app.cli.main", "serve", "--db", f"sqlite:///{directory}/b.db"]
     command += ["--port", str(port)]
     process = subprocess.Popen(command, cwd=ROOT, stdout=subprocess.DEVNULL, env=os.environ)
     deadline = time.monotonic() + 180

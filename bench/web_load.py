@@ -115,7 +115,7 @@ def free_port() -> int:
 def station_server(directory: Path) -> Iterator[tuple[str, subprocess.Popen[bytes]]]:
     """`sp serve` on a fresh store in `directory`; its URL and process, stopped after."""
     port = free_port()
-    command = [sys.executable, "-m", "app.cli", "serve", "--db", f"sqlite:///{directory}/s.db"]
+    command = [sys.executable, "-m", "app.cli.main", "serve", "--db", f"sqlite:///{directory}/s.db"]
     command += ["--port", str(port)]
     log = (directory / "serve.log").open("wb")
     process = subprocess.Popen(command, cwd=ROOT, stdout=log, stderr=subprocess.STDOUT)

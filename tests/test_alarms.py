@@ -12,7 +12,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from app.alarms import (
+from app.station.alarms import (
     SHELVE_LIMIT,
     AlarmBook,
     AlarmChange,
@@ -22,7 +22,8 @@ from app.alarms import (
     Priority,
     conditions,
 )
-from app.scenario import Planners, ScheduledFault, load_scenario, play
+from app.station.player import Planners, play
+from app.station.scenario import ScheduledFault, load_scenario
 from hw.simulated import Fault
 from planner.model.station import Station
 from planner.planning.operation_planner import OperationPlanner

@@ -49,7 +49,7 @@ def db(tmp_path: Path) -> Path:
 
 def verify(db: Path) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
-        [sys.executable, "-m", "app.cli", "audit", "verify", "--db", sqlite_url(db)],
+        [sys.executable, "-m", "app.cli.main", "audit", "verify", "--db", sqlite_url(db)],
         cwd=ROOT,
         capture_output=True,
         text=True,

@@ -139,7 +139,7 @@ def work_the_cards(station: RunningStation, done: Any, seconds: float = 240) -> 
     """The operator, without a browser: each card's action as the tasks page sends it."""
     import time
 
-    from app.views import CardKind, task_cards
+    from app.pages.cards import CardKind, task_cards
     from planner.runner import Approve, MaintenanceDone
 
     deadline = time.monotonic() + seconds

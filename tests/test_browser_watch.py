@@ -21,7 +21,7 @@ from typing import Any
 
 import pytest
 
-from app.views import task_cards
+from app.pages.cards import task_cards
 from tests.stations import RunningStation, new_password, start_station
 from tests.test_browser_operator import sign_in_first_time
 

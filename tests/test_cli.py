@@ -15,7 +15,7 @@ EXAMPLE = Path(__file__).parent.parent / "models" / "examples" / "bolt_and_nutru
 
 def sp(*args: str) -> subprocess.CompletedProcess[str]:
     command = shutil.which("sp")
-    prefix = [command] if command else [sys.executable, "-m", "app.cli"]
+    prefix = [command] if command else [sys.executable, "-m", "app.cli.main"]
     return subprocess.run([*prefix, *args], capture_output=True, text=True, timeout=60)
 
 

@@ -15,8 +15,9 @@ from pathlib import Path
 
 import pytest
 
-from app.scenario import Planners, load_scenario, play
-from app.station_cycle import ScheduledFault
+from app.station.cycle import ScheduledFault
+from app.station.player import Planners, play
+from app.station.scenario import load_scenario
 from hw.faults import Fault, FaultKind
 from planner.model.station import ResourceKind, Station
 from planner.planning.operation_planner import OperationPlanner

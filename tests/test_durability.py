@@ -32,7 +32,7 @@ class Serve:
         self.process: subprocess.Popen[bytes] | None = None
 
     def start(self) -> None:
-        command = [sys.executable, "-m", "app.cli", "serve", "--model", str(MODEL)]
+        command = [sys.executable, "-m", "app.cli.main", "serve", "--model", str(MODEL)]
         command += ["--db", f"sqlite:///{self.db}", "--port", str(self.port), "--period", "0.05"]
         command += self.extra
         self.process = subprocess.Popen(
@@ -132,7 +132,7 @@ def test_kill_9_loses_no_state_and_no_committed_audit_record(serve: Serve) -> No
     rows = audit_rows(serve.db)
     assert rows[: len(committed)] == committed, "a committed audit record changed or is missing"
     check = subprocess.run(
-        [sys.executable, "-m", "app.cli", "audit", "verify", "--db", f"sqlite:///{serve.db}"],
+        [sys.executable, "-m", "app.cli.main", "audit", "verify", "--db", f"sqlite:///{serve.db}"],
         cwd=ROOT,
         capture_output=True,
         text=True,

@@ -19,7 +19,7 @@ from typing import Any
 
 import pytest
 
-from app.scenario import load_scenario
+from app.station.scenario import load_scenario
 from hw.ur.emulator.launch import free_block, on_block
 from planner.reading import load_station
 from tests.test_runner import is_subsequence, matches
@@ -50,7 +50,7 @@ class Event:
 def play(name: str, block: int, directory: Path) -> tuple[list[Event], str]:
     devices = directory / f"{name}.devices.yaml"
     devices.write_text(on_block(DEVICES.read_text(), block))
-    command = [sys.executable, "-m", "app.cli", "run", str(MODEL), "--json"]
+    command = [sys.executable, "-m", "app.cli.main", "run", str(MODEL), "--json"]
     command += ["--scenario", str(SCENARIOS / f"{name}.yaml"), "--devices", str(devices)]
     try:
         done = subprocess.run(

@@ -13,7 +13,8 @@ from typing import Any
 
 import pytest
 
-from app.scenario import Planners, Scenario, load_scenario, play
+from app.station.player import Planners, play
+from app.station.scenario import Scenario, load_scenario
 from planner.model.station import Station
 from planner.planning.operation_planner import OperationPlanner
 from planner.planning.query import PlanResult

@@ -324,7 +324,7 @@ def _visit(reader: Reader, station: RunningStation, findings: Findings, moment: 
 def operator_hands(station: RunningStation) -> Iterator[None]:
     """The operator taps Done on every watch card meanwhile, as one would (in a thread, so
     that the station works on while the browsers sign in and read)."""
-    from app.views import CardKind, task_cards
+    from app.pages.cards import CardKind, task_cards
 
     stop = threading.Event()
 
@@ -352,7 +352,7 @@ def _cards_until(
     station: RunningStation, wanted: Callable[[Any], bool], seconds: float = 60.0
 ) -> list[Any]:
     """The task cards once one of them is `wanted`."""
-    from app.views import task_cards
+    from app.pages.cards import task_cards
 
     found: list[Any] = []
 

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from app.planning_worker import PlanningWorker
+from app.station.planning_worker import PlanningWorker
 from planner.model.station import Station
 from planner.planning.operation_planner import OperationPlanner
 from planner.planning.transition_planner import TransitionPlanner
@@ -125,7 +125,7 @@ def test_the_worker_ends_when_its_station_is_killed(tmp_path: Path) -> None:
     script = tmp_path / "station.py"
     script.write_text(
         "import os, signal, sys, time\n"
-        "from app.planning_worker import PlanningWorker\n"
+        "from app.station.planning_worker import PlanningWorker\n"
         "if __name__ == '__main__':\n"
         f"    w = PlanningWorker(open({str(MINI)!r}).read(), 'mini', None)\n"
         "    while not w.ready:\n"

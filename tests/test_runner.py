@@ -10,14 +10,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from app.scenario import (
-    Planners,
-    Scenario,
-    ScenarioError,
-    load_scenario,
-    play,
-)
-from app.station_cycle import ScheduledFault
+from app.station.cycle import ScheduledFault
+from app.station.player import Planners, play
+from app.station.scenario import Scenario, ScenarioError, load_scenario
 from hw.faults import Fault, FaultKind
 from planner.model.expressions import Value, format_expr
 from planner.model.station import Station

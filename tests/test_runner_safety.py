@@ -11,8 +11,9 @@ from pathlib import Path
 
 import pytest
 
-from app.scenario import Planners, load_scenario, play
-from app.station_cycle import ScheduledFault, StationCycle
+from app.station.cycle import ScheduledFault, StationCycle
+from app.station.player import Planners, play
+from app.station.scenario import load_scenario
 from hw.faults import Fault, FaultKind
 from hw.simulated import SimulatedWorld
 from planner.model.expression_text import parse_expr
@@ -587,8 +588,8 @@ def test_recovery_steps_of_people_are_instructions_and_of_machines_approvals(
     and a robot's move: the maintenance step is an instruction (reported done, or rejected
     as "I cannot"), the watch card is shown at once (doing it is the consent), and only the
     robot's move waits for an approval.  The cards say the same."""
-    from app.station_view import ActiveModel, StationView
-    from app.views import CardKind, TaskCard, task_cards
+    from app.pages.cards import CardKind, TaskCard, task_cards
+    from app.station.view import ActiveModel, StationView
 
     runner = demo_runner
     heard = everyone(runner)
@@ -666,8 +667,8 @@ def test_a_watch_card_says_how_long_the_station_has_waited_once_it_reminded(
 ) -> None:
     """A person is reminded, not timed out: after a reminder the card says how long the
     station has been waiting for them; before it, nothing nags."""
-    from app.station_view import ActiveModel, StationView
-    from app.views import CardKind, task_cards
+    from app.pages.cards import CardKind, task_cards
+    from app.station.view import ActiveModel, StationView
 
     runner = demo_runner
     station = runner.station

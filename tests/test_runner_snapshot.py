@@ -11,9 +11,10 @@ from typing import Any
 
 import pytest
 
-import app.scenario
-from app import supervisor_cache
-from app.scenario import Planners, Scenario, load_scenario, play
+import app.station.player
+from app.station import supervisor_cache
+from app.station.player import Planners, play
+from app.station.scenario import Scenario, load_scenario
 from planner.model.station import Station
 from planner.planning.operation_planner import OperationPlanner
 from planner.planning.partial_order import Block
@@ -87,7 +88,7 @@ def runs(demo: tuple[Station, Planners]) -> dict[str, Run]:
 
     out = {}
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(app.scenario, "Runner", Recording)
+        patch.setattr(app.station.player, "Runner", Recording)
         for path in SCENARIOS:
             scenario = load_scenario(path.read_text(), str(path), station)
             states: list[RunnerState] = []

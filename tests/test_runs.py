@@ -1,4 +1,4 @@
-"""Runs found in a station's events (app.runs): where one starts and ends, how it ends, and
+"""Runs found in a station's events (app.history.runs): where one starts and ends, how it ends, and
 one clock across restarts."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ from typing import Any
 from hypothesis import given
 from hypothesis import strategies as st
 
-from app.runs import Happening, Outcome, find_runs, on_one_clock, seconds, within
+from app.history.runs import Happening, Outcome, find_runs, on_one_clock, seconds, within
 
 
 def intention(time: float, name: str, before: str, after: str, why: str = "") -> dict[str, Any]:

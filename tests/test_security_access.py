@@ -1,6 +1,6 @@
 """Who may use which route: the permission table by every page and API route (issue 15).
 
-Both tables are written out here, independently of app/auth.py, so that a slip there (a
+Both tables are written out here, independently of app/people/auth.py, so that a slip there (a
 permission given to the wrong role) or in a route (the wrong `require(...)`, a check
 forgotten) fails a test.  Every route the app serves must have a row in `ROUTES`: a new
 route without one fails `test_every_route_has_an_expected_access`, so none escapes.
@@ -30,7 +30,7 @@ from fastapi.routing import iter_route_contexts
 from fastapi.testclient import TestClient
 from starlette.routing import Mount
 
-from app.auth import PERMISSIONS, ROLES, Permission
+from app.people.auth import PERMISSIONS, ROLES, Permission
 from tests.stations import RunningStation, form_token, new_password, start_station
 
 TASKS, ALARMS, ACKNOWLEDGE, STATION = "tasks", "alarms", "acknowledge", "station"

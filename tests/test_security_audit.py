@@ -34,7 +34,7 @@ def db(tmp_path: Path) -> Path:
     store = sealed_store(path)
 
     def add(name: str, role: str) -> None:
-        from app.auth import add_user
+        from app.people.auth import add_user
 
         def adding(session: object) -> None:
             add_user(session, name, role, f"{name}-password-1", must_change=False)  # type: ignore[arg-type]

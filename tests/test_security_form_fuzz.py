@@ -36,7 +36,7 @@ from fastapi.testclient import TestClient
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from app.auth import ROLES
+from app.people.auth import ROLES
 from tests.stations import MODEL, RunningStation, form_token, new_password
 
 EXAMPLES = 20  # random examples per route, besides the explicit nasty ones

@@ -15,7 +15,7 @@ import httpx
 import pytest
 from sqlalchemy import event
 
-from app.live_station import StationError
+from app.station.live import StationError
 from tests.stations import RunningStation, form_token
 from tests.test_security_throttle import audited
 

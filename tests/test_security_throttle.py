@@ -12,7 +12,7 @@ from concurrent.futures import ThreadPoolExecutor
 import pytest
 from starlette.testclient import TestClient
 
-from app.throttle import Attempt, Refused, SignInThrottle
+from app.people.throttle import Attempt, Refused, SignInThrottle
 from app.web import auth_routes
 from app.web.server import parse_networks
 from tests.stations import RunningStation, form_token, new_password

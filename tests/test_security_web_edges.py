@@ -111,7 +111,7 @@ def stack_budget(frames: int) -> Iterator[None]:
 
 
 def sp_check(path: Path) -> subprocess.CompletedProcess[str]:
-    command = [sys.executable, "-m", "app.cli", "check", str(path)]
+    command = [sys.executable, "-m", "app.cli.main", "check", str(path)]
     return subprocess.run(command, capture_output=True, text=True, timeout=120, cwd=ROOT)
 
 

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import httpx
 
-from app.cli_station import progress_printer, say_when_listening
+from app.cli.station import progress_printer, say_when_listening
 from tests.stations import MODEL, free_port
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -33,7 +33,16 @@ STEPS = (
 
 def test_sp_serve_prints_its_progress_until_it_listens(tmp_path: Path) -> None:
     port = free_port()
-    command = [sys.executable, "-m", "app.cli", "serve", "--model", str(MODEL), "--port", str(port)]
+    command = [
+        sys.executable,
+        "-m",
+        "app.cli.main",
+        "serve",
+        "--model",
+        str(MODEL),
+        "--port",
+        str(port),
+    ]
     command += ["--db", f"sqlite:///{tmp_path / 'station.db'}"]
     process = subprocess.Popen(
         command,

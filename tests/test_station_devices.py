@@ -17,8 +17,8 @@ from pathlib import Path
 
 import pytest
 
-from app.emulated_station import EmulatedStation, emulate, start_values
-from app.station_cycle import StationCycle
+from app.station.cycle import StationCycle
+from app.station.emulated import EmulatedStation, emulate, start_values
 from hw.device_file import load_devices
 from hw.device_file.spec import DeviceFile
 from hw.faults import Fault, FaultKind

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import yaml
 
-from app import supervisor_cache
+from app.station import supervisor_cache
 from bench import family
 from planner.model.expression_text import parse_expr
 from planner.planning.query import PlanQuery

@@ -1,5 +1,5 @@
-"""A run's timeline (app.timeline) and its drawing (app.timeline_drawing): E6 played on the
-simulated station, and properties of random event sequences on the demo station."""
+"""A run's timeline (app.history.timeline) and its drawing (app.history.timeline_drawing):
+E6 played on the simulated station, and properties of random event sequences on the demo station."""
 
 from __future__ import annotations
 
@@ -13,10 +13,11 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from app import timeline_drawing
-from app.runs import Happening, Run, find_runs, from_events
-from app.scenario import Planners, load_scenario, play
-from app.timeline import BarKind, Timeline, timeline
+from app.history import timeline_drawing
+from app.history.runs import Happening, Run, find_runs, from_events
+from app.history.timeline import BarKind, Timeline, timeline
+from app.station.player import Planners, play
+from app.station.scenario import load_scenario
 from planner.model.station import Station
 from planner.planning.operation_planner import OperationPlanner
 from planner.planning.transition_planner import TransitionPlanner

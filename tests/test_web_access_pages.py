@@ -10,7 +10,7 @@ from collections.abc import Iterator
 import pytest
 from fastapi.testclient import TestClient
 
-from app.auth import ROLES
+from app.people.auth import ROLES
 from tests.stations import RunningStation, form_token, start_station
 
 # a page each role may not open, and the pages it may (the top bar's order)

@@ -14,7 +14,7 @@ from typing import Any
 import pytest
 from sqlalchemy import select
 
-from app.alarms import Alarm
+from app.station.alarms import Alarm
 from app.store.tables import AuditRecord
 from app.web.alarms import moment, relative
 from hw.faults import Fault, FaultKind
@@ -238,7 +238,7 @@ def work_through(
 ) -> None:
     """Do what the task cards ask (approve, do the maintenance step, tap Done), as the
     operator, until `intention` is finished; a tap that raced a change is simply retried."""
-    from app.views import CardKind, task_cards
+    from app.pages.cards import CardKind, task_cards
 
     def finished() -> bool:
         return bool(station.live.view.state.intentions.get(intention) == "f")

@@ -133,7 +133,7 @@ def test_an_admin_adds_and_disables_users(station: RunningStation) -> None:
 
 
 def test_each_role_has_exactly_its_permissions_and_an_unknown_role_none() -> None:
-    from app.auth import ROLES, Permission, allowed
+    from app.people.auth import ROLES, Permission, allowed
 
     may = {role: {p.value for p in Permission if allowed(role, p)} for role in ROLES}
     operator = {"tasks", "alarms", "acknowledge"}

@@ -303,7 +303,7 @@ def test_simulation_panel_plays_an_experiment(station: RunningStation):
 
 
 def test_plan_drawing_puts_independent_steps_side_by_side():
-    from app import plan_view
+    from app.pages import plans as plan_view
 
     after = [frozenset(), frozenset(), frozenset({0}), frozenset({0, 1, 2})]
     assert plan_view.levels(after) == [0, 0, 1, 2]
@@ -321,7 +321,7 @@ def test_plan_drawing_puts_independent_steps_side_by_side():
 
 
 def test_plan_steps_are_words_wrapped_never_cut_and_counted_in_good_english():
-    from app import plan_view
+    from app.pages import plans as plan_view
     from app.web.engineer import steps
 
     long = "find the hanging tools with robot 1's camera and wait for the operator to answer"
@@ -335,7 +335,7 @@ def test_plan_steps_are_words_wrapped_never_cut_and_counted_in_good_english():
 
 
 def test_timeline_page_shows_the_run_from_the_audit_log(station: RunningStation):
-    from app.run_history import run_history
+    from app.history.run_history import run_history
 
     client, token = signed_in(station)
     empty = client.get("/station/timeline")

@@ -78,7 +78,8 @@ class StationRecord(Base):
 
 
 class AlarmRecord(Base):
-    """The alarm book's rows (app.alarms.Alarm), kept so that alarm states survive a restart."""
+    """The alarm book's rows (app.station.alarms.Alarm), kept so that alarm states survive a
+    restart."""
 
     __tablename__ = "alarms"
 

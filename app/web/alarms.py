@@ -2,7 +2,7 @@
 raise time, its details and forms opened on a tap; acknowledge one, or all those shown with
 one note; shelve one for a while (its end shown), unshelve it.
 
-Every change goes through the live station's request queue (`app.live_station`), audited
+Every change goes through the live station's request queue (`app.station.live`), audited
 per alarm in the round that makes it.  A form's answer to htmx is the refreshed list with
 the top bar's badge (`_alarm_badge.html`, out of band), so the count never lags the list.
 """
@@ -17,8 +17,8 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Depends, Form, HTTPException, Request
 from fastapi.responses import RedirectResponse, Response
 
-from app.alarms import Alarm, AlarmState
-from app.auth import Permission, allowed
+from app.people.auth import Permission, allowed
+from app.station.alarms import Alarm, AlarmState
 from app.web.actions import answer
 from app.web.deps import Caller, current_caller, page_context, require, server
 

@@ -2,7 +2,7 @@
 
 Authenticate with `POST /api/token` and send `Authorization: Bearer <token>`; a browser
 session works too (with its CSRF token on unsafe methods).  Each route names the
-permission it needs (app.auth.PERMISSIONS).  Names are checked before the runner sees them
+permission it needs (app.people.auth.PERMISSIONS).  Names are checked before the runner sees them
 (404 with a suggestion); the runner then takes or refuses the action (409 with its reason);
 bodies that do not fit the schema are 422.  Actions answer with the runner's events of the
 tick that carried them out, so the caller sees what happened.
@@ -16,10 +16,10 @@ from fastapi import APIRouter, Depends, HTTPException, Path, Query, Request
 from fastapi.responses import JSONResponse
 from fastapi.security import HTTPBearer
 
-from app.auth import Permission
-from app.live_station import StationError
+from app.pages.cards import task_cards
+from app.people.auth import Permission
+from app.station.live import StationError
 from app.store import audit, versions
-from app.views import task_cards
 from app.web import actions, model_editing
 from app.web.actions import answer, perform
 from app.web.audit import Criteria, filter_dependency

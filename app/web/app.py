@@ -10,7 +10,7 @@ from fastapi.responses import HTMLResponse, JSONResponse, RedirectResponse, Resp
 from fastapi.staticfiles import StaticFiles
 from starlette.middleware.sessions import SessionMiddleware
 
-from app.live_station import StationError
+from app.station.live import StationError
 from app.web import auth_routes, events, operator
 from app.web.deps import LoginRequired, PasswordChangeRequired, is_api, page_context
 from app.web.headers import SecurityHeaders

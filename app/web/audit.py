@@ -26,7 +26,7 @@ from fastapi.responses import Response, StreamingResponse
 from sqlalchemy import Select, and_, or_
 from sqlalchemy.orm import Session
 
-from app.auth import Permission
+from app.people.auth import Permission
 from app.store import audit
 from app.store.audit import AuditEntry, AuditFilter
 from app.store.tables import AuditRecord

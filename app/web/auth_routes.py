@@ -1,10 +1,10 @@
 """Signing in and out, password changes, and API tokens (audited, throttled).
 
-A sign-in reserves an attempt with the throttle (app.throttle) before its password is
+A sign-in reserves an attempt with the throttle (app.people.throttle) before its password is
 checked, checks an unknown name against a dummy hash (the answer takes as long either way),
 and holds no database connection while argon2 works or while the audit record is written,
 so that a crowd of failed sign-ins can neither exhaust the connection pool nor stall anyone
-else's request.  Signing in opens a session in the store (app.user_sessions); signing out
+else's request.  Signing in opens a session in the store (app.people.sessions); signing out
 ends it, and a password change ends every session and token of the user.
 """
 
@@ -17,14 +17,14 @@ from fastapi.responses import RedirectResponse, Response
 from pydantic import BaseModel, Field
 from sqlalchemy.orm import Session
 
-from app import user_sessions
-from app.auth import dummy_hash, password_matches, password_problem, user_named
-from app.auth import hash_password as new_hash
+from app.people import sessions as user_sessions
+from app.people.auth import dummy_hash, password_matches, password_problem, user_named
+from app.people.auth import hash_password as new_hash
+from app.people.sessions import SessionKind
+from app.people.throttle import Refused
 from app.store import audit
 from app.store.audit import AuditEntry
 from app.store.tables import User
-from app.throttle import Refused
-from app.user_sessions import SessionKind
 from app.web.deps import (
     browser_session,
     client_address,

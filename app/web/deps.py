@@ -1,7 +1,7 @@
 """FastAPI dependencies: the server, the current user and their permissions, CSRF checks.
 
 Pages and API routes share them: a browser session (signed cookie) or, for line systems, a
-bearer token, each looked up in the store on every request (app.user_sessions: revoked at
+bearer token, each looked up in the store on every request (app.people.sessions: revoked at
 once on logout, password change or disable), for a user whose row is sealed (app.store.seals:
 a row changed outside the station is refused).  Unsafe methods from a browser session must
 carry the session's CSRF token, as a form field `csrf_token` or an `X-CSRF-Token` header;
@@ -19,13 +19,13 @@ from typing import Any
 from fastapi import HTTPException, Request
 from starlette.concurrency import run_in_threadpool
 
-from app import user_sessions
-from app.auth import Permission, allowed, new_csrf_token, same_token
-from app.station_view import StationView
+from app.people import sessions as user_sessions
+from app.people.auth import Permission, allowed, new_csrf_token, same_token
+from app.people.sessions import SessionKind
+from app.station.view import StationView
 from app.store import audit, seals
 from app.store.audit import AuditEntry
 from app.store.tables import User
-from app.user_sessions import SessionKind
 from app.web.server import Network, Server
 
 log = logging.getLogger(__name__)

@@ -20,11 +20,12 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Depends, Form, HTTPException, Query, Request
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
 
-from app import plan_view, timeline
-from app.auth import Permission, allowed
-from app.station_cycle import ScheduledFault
-from app.station_view import StationView
-from app.views import task_cards
+from app.history import timeline
+from app.pages import plans as plan_view
+from app.pages.cards import task_cards
+from app.people.auth import Permission, allowed
+from app.station.cycle import ScheduledFault
+from app.station.view import StationView
 from app.web.actions import (
     answer,
     effect_name,

@@ -17,7 +17,7 @@ from collections.abc import AsyncIterator
 from fastapi import APIRouter, Request
 from fastapi.responses import StreamingResponse
 
-from app.live_station import LiveStation
+from app.station.live import LiveStation
 from app.web.deps import alarm_badge, current_caller, server
 
 router = APIRouter()

@@ -16,7 +16,7 @@ from fastapi import HTTPException
 from sqlalchemy.orm import Session
 from starlette.concurrency import run_in_threadpool
 
-from app.station_view import build_model
+from app.station.view import build_model
 from app.store import audit, versions
 from app.store.audit import AuditEntry
 from app.store.tables import ModelVersion
@@ -115,6 +115,6 @@ async def activate(srv: Server, number: int, user: str) -> None:
         gc.collect()  # one long collection, while the station is idle or in restart mode
         gc.freeze()
     if srv.experiments:
-        from app.serve import experiments
+        from app.station.experiments import experiments
 
         srv.experiments = experiments(model.station)

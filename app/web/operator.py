@@ -12,11 +12,11 @@ from urllib.parse import urlsplit
 from fastapi import APIRouter, Depends, Form, HTTPException, Request
 from fastapi.responses import RedirectResponse, Response
 
-from app.auth import Permission, Role
-from app.done_today import done_today
-from app.live_station import StationError
-from app.station_view import StationView
-from app.views import station_activity, task_cards
+from app.history.done_today import done_today
+from app.pages.cards import station_activity, task_cards
+from app.people.auth import Permission, Role
+from app.station.live import StationError
+from app.station.view import StationView
 from app.web.actions import answer, maintenance_step, perform
 from app.web.deps import Caller, current_caller, page_context, require, server
 from planner.runner import Approve, MaintenanceDone, Reject
@@ -152,7 +152,7 @@ async def approve(
 
 @router.get("/today")
 def today(request: Request) -> Response:
-    """The operator's "done today" (app.done_today)."""
+    """The operator's "done today" (app.history.done_today)."""
     caller = current_caller(request)
     if caller is None:
         return RedirectResponse("/login?next=/today", status_code=303)

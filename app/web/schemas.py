@@ -17,10 +17,10 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, StringConstraints, model_validator
 from pydantic_core import PydanticCustomError
 
-from app.alarms import SHELVE_LIMIT, Alarm, AlarmChange
-from app.station_view import StationView
+from app.pages.cards import CardKind, TaskCard
+from app.station.alarms import SHELVE_LIMIT, Alarm, AlarmChange
+from app.station.view import StationView
 from app.store.tables import AuditRecord, ModelVersion
-from app.views import CardKind, TaskCard
 from app.web.audit import detail_of
 from app.web.model_editing import MAX_MODEL_CHARS
 from planner.model.expressions import format_expr

@@ -10,12 +10,12 @@ from pathlib import Path
 
 from fastapi.templating import Jinja2Templates
 
-from app.live_station import LiveStation
-from app.scenario import Scenario
+from app.people.sessions import ApiTokens
+from app.people.throttle import SignInThrottle
+from app.station.live import LiveStation
+from app.station.scenario import Scenario
 from app.store.checkpoints import Checkpointer
 from app.store.db import Store
-from app.throttle import SignInThrottle
-from app.user_sessions import ApiTokens
 
 ROOT = Path(__file__).resolve().parents[2]
 TEMPLATES = ROOT / "templates"

@@ -6,8 +6,8 @@ links to the details (`/station/details`, app.web.engineer: plans, operations, v
 devices, controls) and to the timeline.
 
 The timeline (`/station/timeline`): what the station did in its current run and in the runs
-before it, as a Gantt chart per resource (`app.timeline_drawing`), with each run's cycle
-time and the time it lost per cause.  Read from the audit log (`app.run_history`), so it
+before it, as a Gantt chart per resource (`app.history.timeline_drawing`), with each run's cycle
+time and the time it lost per cause.  Read from the audit log (`app.history.run_history`), so it
 survives restarts and shows runs of earlier model versions too (their names in the active
 model's words, or humanised where the active model does not know them)."""
 
@@ -20,12 +20,13 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Depends, HTTPException, Query, Request
 from fastapi.responses import Response
 
-from app import plan_view, timeline_drawing
-from app.auth import Permission
-from app.run_history import History, run_history
-from app.runs import Outcome, Run, seconds
-from app.station_view import StationView
-from app.timeline import Timeline, timeline
+from app.history import timeline_drawing
+from app.history.run_history import History, run_history
+from app.history.runs import Outcome, Run, seconds
+from app.history.timeline import Timeline, timeline
+from app.pages import plans as plan_view
+from app.people.auth import Permission
+from app.station.view import StationView
 from app.web.deps import Caller, page_context, require, server
 from app.web.engineer import live_fragment, render
 from planner.runner import IntentionState

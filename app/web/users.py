@@ -19,8 +19,8 @@ from sqlalchemy import func, select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
-from app import user_sessions
-from app.auth import (
+from app.people import sessions as user_sessions
+from app.people.auth import (
     ROLES,
     Permission,
     Role,

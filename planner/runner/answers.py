@@ -2,7 +2,7 @@
 
 `InProcess` asks the planners at once, inside the tick: deterministic, what `sp run` and the
 tests replay.  A station that must never stand still hands its queries to a worker instead
-(`app.planning_worker`): `answer` returns None until the answer is ready, `ask` raises
+(`app.station.planning_worker`): `answer` returns None until the answer is ready, `ask` raises
 `Pending`, and `run_tick` undoes the phase that asked (its state and events) so the tick
 goes on with the other phases and the phase is tried again next tick.  A phase retried in
 the same state asks the same queries, whose answers the worker keeps; a phase retried in a

@@ -9,8 +9,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from app import supervisor_cache
-from app.alarms import Alarm
+from app.station import supervisor_cache
+from app.station.alarms import Alarm
 from app.store.tables import ModelVersion
 from planner.model.station import Station
 from planner.planning.operation_planner import OperationPlanner

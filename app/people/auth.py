@@ -1,6 +1,6 @@
 """Users, roles, permissions, passwords (argon2) and CSRF tokens.
 
-Sessions and API tokens are in app.user_sessions, sign-in throttling in app.throttle."""
+Sessions and API tokens are in app.people.sessions, sign-in throttling in app.people.throttle."""
 
 from __future__ import annotations
 

@@ -26,21 +26,21 @@ def read_station(path: str) -> tuple[Station, str]:
 
 
 def planner_for(args: argparse.Namespace, model: Model, text: str, engine: str = "bdd") -> Any:
-    from app import supervisor_cache
+    from app.station import supervisor_cache
 
     directory = None if args.no_cache else supervisor_cache.default_directory()
     return supervisor_cache.planner(model, text, engine, directory)
 
 
 def remember_order(args: argparse.Namespace, planner: Any, text: str) -> None:
-    from app import supervisor_cache
+    from app.station import supervisor_cache
 
     directory = None if args.no_cache else supervisor_cache.default_directory()
     supervisor_cache.remember_order(planner, text, directory)
 
 
 def device_file(path: str, station: Station) -> DeviceFile:
-    from app.emulated_station import read_device_file
+    from app.station.emulated import read_device_file
 
     try:
         return read_device_file(path, station)

@@ -1,6 +1,6 @@
-"""The timeline of a run (`app.runs`): per resource what ran when, the waits, errors and
+"""The timeline of a run (`app.history.runs`): per resource what ran when, the waits, errors and
 recoveries, the cycle time and the time lost per cause: a Gantt chart's data, drawn by
-`app.timeline_drawing`.
+`app.history.timeline_drawing`.
 
 A pure function of the run's `Happening`s and the station model (who owns which
 transition).  A resource's *bar* starts when the runner takes one of its controlled
@@ -26,12 +26,12 @@ from dataclasses import dataclass
 from enum import StrEnum
 from typing import Any
 
-from app.runs import Happening, Run, seconds, within
+from app.history.runs import Happening, Run, seconds, within
 from planner.model.station import Station
 from planner.reading.display import humanised
 from planner.words import Wording
 
-# the event kinds a timeline reads (and `app.runs` needs), for the audit log's query
+# the event kinds a timeline reads (and `app.history.runs` needs), for the audit log's query
 # fmt: off
 KINDS = frozenset({
     "taken", "effect", "unexpected", "timeout", "unavailable", "available", "intention",

@@ -19,8 +19,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, NoReturn
 
-from app import cli_station
-from app.cli_common import UsageError, planner_for, read_station, remember_order
+from app.cli import station as cli_station
+from app.cli.common import UsageError, planner_for, read_station, remember_order
 from planner.bdd.synthesis import COUNTABLE_BITS
 from planner.model.expression_text import parse_expr
 from planner.model.expressions import Expr, ExpressionError

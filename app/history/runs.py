@@ -6,7 +6,7 @@ experiment puts the station back to a start, which interrupts a run; `sp run` en
 `done` or `stopped`.  An intention started again after an error goes on in the same run.
 
 Pure functions of `Happening`s: the runner's events as the audit log keeps them
-(`app.station_records.event_entry`, read back by `app.run_history`) or as `sp run` and the
+(`app.station.records.event_entry`, read back by `app.history.run_history`) or as `sp run` and the
 scenario player yield them (`from_events`).  Times are station seconds.
 """
 

@@ -2,10 +2,10 @@
 
 One thread owns the station cycle (runner and devices) and the alarm book, and steps the
 cycle every `period` seconds, with all people's actions of the round in one tick
-(`app.station_cycle`, the same cycle the scenario player runs).  Everything else talks to
+(`app.station.cycle`, the same cycle the scenario player runs).  Everything else talks to
 it through requests that the loop takes between rounds, so the runner stays the only place
 live state changes (STYLE.md).  After each round the loop commits, in one transaction, the
-round's audit records, alarm rows and the runner's snapshot (`app.station_records`), and
+round's audit records, alarm rows and the runner's snapshot (`app.station.records`), and
 only then answers the requests and tells the web pages: what a person was told has happened
 is on disk.
 """
@@ -26,13 +26,13 @@ from concurrent.futures import Future
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-from app import station_records as records
-from app.alarms import AlarmBook, AlarmChange, AlarmError, conditions
-from app.page_updates import PageUpdates
-from app.planning_worker import PlanningWorker
-from app.scenario import Scenario
-from app.station_cycle import StationCycle
-from app.station_view import ActiveModel, DeviceLink, StationView
+from app.station import records
+from app.station.alarms import AlarmBook, AlarmChange, AlarmError, conditions
+from app.station.cycle import StationCycle
+from app.station.page_updates import PageUpdates
+from app.station.planning_worker import PlanningWorker
+from app.station.scenario import Scenario
+from app.station.view import ActiveModel, DeviceLink, StationView
 from app.store.audit import AuditEntry
 from app.store.db import Store
 from hw.devices import Devices, Restorable
@@ -146,7 +146,7 @@ class LiveStation:
         self.started_at = clock()
         self.model = model
         self.config = config or RunnerConfig(auto_intentions=frozenset())
-        # planning beside the loop, so that no query stalls a round (app.planning_worker)
+        # planning beside the loop, so that no query stalls a round (app.station.planning_worker)
         self.planning_worker = planning_worker
         self.planning_delay = planning_delay  # tests: every query made slow on purpose
         self.worker = self._worker(model)

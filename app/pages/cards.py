@@ -8,7 +8,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import StrEnum
 
-from app.station_view import StationView
+from app.station.view import StationView
 from planner.model.flat import TransitionKind
 from planner.model.watch import IDLE
 from planner.runner import Event, EventKind, IntentionState, OperationState, TransitionPlan

@@ -1,5 +1,5 @@
 """An operator's "done today": the engines the station completed since midnight and the
-person's own tasks, read from the audit log (the runs as `app.run_history` finds them)."""
+person's own tasks, read from the audit log (the runs as `app.history.run_history` finds them)."""
 
 from __future__ import annotations
 
@@ -9,14 +9,14 @@ from datetime import datetime
 
 from sqlalchemy import select
 
-from app.run_history import run_history
-from app.runs import Outcome
+from app.history.run_history import run_history
+from app.history.runs import Outcome
 from app.store.db import Store
 from app.store.tables import AuditRecord
 from planner.model.station import Station
 from planner.words import Wording, sentence
 
-# the records of a person's own taps on the task cards (app.live_station, planner.runner.people)
+# the records of a person's own taps on the task cards (app.station.live, planner.runner.people)
 _TASKS = {
     "card done": "Done",
     "maintenance done": "Done",

@@ -15,7 +15,7 @@ from typing import Any
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from app.alarms import Alarm, AlarmBook, AlarmChange, AlarmState, Priority
+from app.station.alarms import Alarm, AlarmBook, AlarmChange, AlarmState, Priority
 from app.store import audit
 from app.store.audit import AuditEntry
 from app.store.db import Store

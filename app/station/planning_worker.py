@@ -25,7 +25,7 @@ from multiprocessing.process import BaseProcess
 from pathlib import Path
 from typing import Any
 
-from app import supervisor_cache
+from app.station import supervisor_cache
 from planner.planning.operation_planner import OperationPlanner
 from planner.planning.query import PlanQuery, PlanResult, PlanStatus
 from planner.reading import load_station

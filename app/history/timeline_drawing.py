@@ -1,4 +1,4 @@
-"""A run's timeline (`app.timeline`) drawn as an SVG Gantt chart, on the server, without a
+"""A run's timeline (`app.history.timeline`) drawn as an SVG Gantt chart, on the server, without a
 JavaScript library.
 
 One row per lane (the intentions, the operations packed into as few rows as ran at once,
@@ -20,8 +20,8 @@ from html import escape
 
 from markupsafe import Markup
 
-from app.runs import Run, seconds
-from app.timeline import Bar, BarKind, LaneGroup, Mark, MarkKind, Timeline
+from app.history.runs import Run, seconds
+from app.history.timeline import Bar, BarKind, LaneGroup, Mark, MarkKind, Timeline
 
 WIDTH = 1200  # viewBox units across
 LABELS = 200  # the row labels' column

@@ -1,7 +1,7 @@
 """A station's runs read back from its audit log: the engines it built, and what happened in
-each (`app.runs`, `app.timeline`).
+each (`app.history.runs`, `app.history.timeline`).
 
-The runner's events are in the log as `app.station_records.event_entry` wrote them, with
+The runner's events are in the log as `app.station.records.event_entry` wrote them, with
 their station time in `detail["station_time"]` and the wall time of their round in the
 record's `time`.  An experiment played from the simulation panel is a record of its own
 (no station time): it takes the time of the record before it.  People's records that
@@ -15,10 +15,10 @@ from dataclasses import dataclass
 
 from sqlalchemy import select
 
-from app.runs import Happening, Run, find_runs, on_one_clock
+from app.history.runs import Happening, Run, find_runs, on_one_clock
+from app.history.timeline import KINDS
 from app.store.db import Store
 from app.store.tables import AuditRecord
-from app.timeline import KINDS
 
 LIMIT = 20_000  # the newest records read: a few hours of a busy station
 

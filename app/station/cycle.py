@@ -1,6 +1,6 @@
 """One station cycle: devices, runner, devices again, the same for `sp run` and the web.
 
-Every round of a station, headless (`app.scenario.play`) or live (`app.live_station`), is
+Every round of a station, headless (`app.station.player.play`) or live (`app.station.live`), is
 one `StationCycle.step`:
 
     1. armed faults whose time or condition has come are injected (simulated devices)

@@ -16,15 +16,15 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from app.cli_common import UsageError, device_file, planner_for, read_station, remember_order
+from app.cli.common import UsageError, device_file, planner_for, read_station, remember_order
 from planner.model.station import Station
 from planner.runner import Event, EventKind
 from planner.runner.queries import QueryObserver
 
 if TYPE_CHECKING:
-    from app.live_station import DeviceSetup
-    from app.scenario import Scenario
     from app.serve import Built
+    from app.station.live import DeviceSetup
+    from app.station.scenario import Scenario
     from hw.devices import Devices
 
 STARTUP_TIMEOUT = 30.0  # seconds for emulated devices to answer (robots power on first)
@@ -150,8 +150,8 @@ def _serve_devices(
         return None
     if args.speed != 1.0:
         raise UsageError("devices run in real time: leave out --speed")
-    from app.emulated_station import start_values
     from app.serve import on_devices
+    from app.station.emulated import start_values
     from hw.emulation.launch import launch
     from hw.emulation.world import EmulatedWorld
     from hw.emulator_kit.process import EmulatorFailed
@@ -173,7 +173,8 @@ def _serve_devices(
 
 
 def run(args: argparse.Namespace, observer: QueryObserver | None = None) -> int:
-    from app.scenario import Planners, Scenario, ScenarioError, load_scenario, play
+    from app.station.player import Planners, play
+    from app.station.scenario import Scenario, ScenarioError, load_scenario
     from planner.planning.operation_planner import OperationPlanner
 
     if args.speed < 0:
@@ -215,8 +216,8 @@ def _emulated(
     """`--devices FILE`: the emulators of the device file, and the station's devices on them."""
     if not args.devices:
         return None
-    from app.emulated_station import emulate, start_values
-    from app.scenario import person_delay_of
+    from app.station.emulated import emulate, start_values
+    from app.station.scenario import person_delay_of
     from hw.emulator_kit.process import EmulatorFailed
 
     devices = device_file(args.devices, station)
@@ -276,7 +277,7 @@ def audit(args: argparse.Namespace) -> int:
 def emulate(args: argparse.Namespace) -> int:
     """`sp emulate FILE`: the device file's emulators on its addresses, until Ctrl-C; point a
     station at them with `sp serve --devices FILE`."""
-    from app.emulated_station import start_values
+    from app.station.emulated import start_values
     from hw.emulation.launch import launch
     from hw.emulator_kit.process import EmulatorFailed
 

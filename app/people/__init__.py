@@ -1,0 +1,2 @@
+"""People at the station: roles and permissions, passwords, sessions and API tokens, and the
+sign-in throttle."""

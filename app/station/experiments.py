@@ -1,0 +1,38 @@
+"""The experiments E1-E9 of seed 000 Table 1, as the simulation panel offers them."""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+from app.station.scenario import Scenario, ScenarioError, load_scenario
+from planner.model.station import Station
+
+log = logging.getLogger(__name__)
+SCENARIOS = Path(__file__).resolve().parents[2] / "models" / "scenarios"
+
+
+TITLES = {
+    "e1_bolt_undone": "E1: a tightened bolt pair is undone by hand",
+    "e2_oil_filter_early": "E2: oil filters mounted before the bolts are tightened",
+    "e3_lock_fails_on_attach": "E3: r1's tool lock never confirms",
+    "e4_lock_fails_on_release": "E4: r1's tool release never confirms",
+    "e5_r2_disconnects_clear": "E5: r2 stops answering, at home",
+    "e6_r2_disconnects_above_engine": "E6: r2 stops answering above the engine",
+    "e7_r2_disconnects_holding_tool": "E7: r2 stops answering holding the nutrunner",
+    "e8_camera_miss": "E8: the camera does not find the tool",
+    "e9_torque_not_reached": "E9: the nutrunner does not reach its torque",
+}
+
+
+def experiments(station: Station) -> dict[str, tuple[str, Scenario]]:
+    """The E1-E9 scenarios, for the simulation panel (those that fit the active model)."""
+    found: dict[str, tuple[str, Scenario]] = {}
+    for path in sorted(SCENARIOS.glob("e*.yaml")):
+        try:
+            scenario = load_scenario(path.read_text(encoding="utf-8"), str(path), station)
+        except ScenarioError as exc:
+            log.warning("experiment %s does not fit the model: %s", path.name, exc)
+            continue
+        found[path.stem] = (TITLES.get(path.stem, path.stem), scenario)
+    return found

@@ -1,0 +1,155 @@
+"""The headless station loop that plays a scenario (`sp run`, the tests, E1-E9).
+
+`play` runs the runner against the simulated world on a virtual clock (or against emulated
+devices in real time) and yields every event as it happens; the simulated operator answers
+approvals and maintenance steps as the scenario says.  Each round is one station cycle
+(`app.station.cycle`), the round the web station's loop runs too.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+
+from app.station.cycle import StationCycle, due
+from app.station.scenario import Scenario
+from hw.devices import Devices
+from hw.simulated import SimulatedWorld
+from planner.model.station import Station
+from planner.planning.operation_planner import OperationPlanner
+from planner.planning.transition_planner import TransitionPlanner
+from planner.runner import (
+    Action,
+    Approve,
+    Event,
+    EventKind,
+    IntentionState,
+    MaintenanceDone,
+    Runner,
+    RunnerState,
+)
+from planner.runner.answers import Delayed
+from planner.runner.queries import QueryObserver
+from planner.runner.waiting import waiting_for
+
+
+@dataclass
+class Planners:
+    transition: TransitionPlanner
+    operation: OperationPlanner
+
+
+def play(
+    station: Station,
+    scenario: Scenario,
+    planners: Planners,
+    *,
+    step: float = 0.1,
+    speed: float = 0.0,
+    stopwatch: Callable[[], float] | None = None,
+    sleep: Callable[[float], None] = time.sleep,
+    watch: Callable[[RunnerState], None] | None = None,
+    observer: QueryObserver | None = None,
+    devices: Devices | None = None,
+    clock: Callable[[], float] | None = None,
+) -> Iterator[Event]:
+    """Run the scenario; yields events. `speed` 0 runs as fast as possible, 1 in real time.
+
+    By default the station runs on its simulated world on a virtual clock.  With `devices`
+    (emulated devices, `app.station.emulated`) it runs in real time on `clock`: a round
+    every `step` seconds, the scenario's times counted from the first round.  `watch` sees
+    the runner's state after every tick (for tests and monitors); `observer` sees every
+    planning query (for benchmarks).
+    """
+    runner = Runner(
+        station, planners.transition, planners.operation, scenario.config, stopwatch, observer
+    )
+    if devices is None:
+        devices = SimulatedWorld(
+            station,
+            delays=scenario.delays,
+            default_delay=scenario.default_delay,
+            start=scenario.start,
+        )
+    rounds = _Rounds(step, speed, sleep, clock)
+    if scenario.planning_delay > 0:
+        budget = scenario.planning_budget
+        runner.planning = Delayed(runner.planning, scenario.planning_delay, budget, rounds.now)
+    cycle = StationCycle(
+        runner, devices, runner.initial(0.0, scenario.start), list(scenario.faults)
+    )
+    scheduled = list(scenario.actions)
+    answers: list[tuple[float, Action]] = []  # people's actions, when due
+    while (now := rounds.now()) <= scenario.until:
+        for planned in [a for a in scheduled if due(a, now, runner, cycle.state.values)]:
+            scheduled.remove(planned)
+            answers.append((now, planned.action))
+        actions = tuple(a for t, a in answers if t <= now)
+        answers = [(t, a) for t, a in answers if t > now]
+        result = cycle.step(now, actions)
+        if watch is not None:
+            watch(cycle.state)
+        for event in result.events:
+            answers.extend(_operator_answers(event, scenario, now))
+            yield event
+        if _finished(cycle.state, scenario):
+            yield Event(now, EventKind.DONE, "all intentions finished")
+            return
+        rounds.next()
+    waiting = [w.as_json() for w in waiting_for(runner, cycle.state)]
+    yield Event(
+        rounds.now(),
+        EventKind.STOPPED,
+        "time limit",
+        {"until": scenario.until, "waiting_for": waiting},
+    )
+
+
+class _Rounds:
+    """The player's clock: virtual (a round every `step`, slept `step / speed` when `speed`
+    is set), or real (`clock`, rounds every `step` seconds, late rounds not made up)."""
+
+    def __init__(
+        self,
+        step: float,
+        speed: float,
+        sleep: Callable[[float], None],
+        clock: Callable[[], float] | None,
+    ) -> None:
+        self.step, self.speed, self.sleep, self.clock = step, speed, sleep, clock
+        self.virtual = 0.0
+        self.started = clock() if clock is not None else 0.0
+        self.due = self.started
+
+    def now(self) -> float:
+        if self.clock is None:
+            return self.virtual
+        return round(self.clock() - self.started, 3)
+
+    def next(self) -> None:
+        if self.clock is None:
+            self.virtual = round(self.virtual + self.step, 6)
+            if self.speed > 0:
+                self.sleep(self.step / self.speed)
+            return
+        self.due = max(self.due + self.step, self.clock())
+        self.sleep(max(0.0, self.due - self.clock()))
+
+
+def _operator_answers(event: Event, scenario: Scenario, now: float) -> list[tuple[float, Action]]:
+    """What the simulated operator does about an event, and when."""
+    delay = scenario.operator_delay
+    if event.kind is EventKind.APPROVAL and scenario.approve:
+        out: list[tuple[float, Action]] = [(now + delay, Approve(step=int(event.detail["step"])))]
+        if event.detail.get("type") == "maintenance" and scenario.maintenance:
+            out.append((now + 2 * delay, MaintenanceDone(transition=event.subject)))
+        return out
+    if event.kind is EventKind.INSTRUCTION and scenario.maintenance:
+        return [(now + delay, MaintenanceDone(transition=event.subject))]
+    return []
+
+
+def _finished(state: RunnerState, scenario: Scenario) -> bool:
+    names = scenario.intentions if scenario.intentions is not None else tuple(state.intentions)
+    return bool(names) and all(state.intentions[n] == IntentionState.FINISHED for n in names)
