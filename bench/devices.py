@@ -93,7 +93,7 @@ class Bench:
 def demo_station(answer_after: float = 1.0) -> Iterator[Bench]:
     """The demo station's emulators and devices, all connected; everything stopped after."""
     station = load_station(MODEL.read_text(), str(MODEL))
-    # blocks 200-249: apart from the tests' (tests/test_station_devices.py takes 120-199), so
+    # blocks 200-249: apart from the tests' (tests/hw/test_station_devices.py takes 120-199), so
     # that the benchmark's test and the tests may run at once (pytest -n)
     text = on_block(DEVICES.read_text(), free_block(range(200, 250)))
     devices = load_devices(text, "demo_station.devices.yaml", station)

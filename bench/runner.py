@@ -78,7 +78,8 @@ LARGE_TICK_TARGET_MS = 10.0  # ... and at 10,000 transitions
 
 
 def recovery(events: Sequence[Event]) -> list[Event]:
-    """Planning actions after the first fault that were not routine (as tests/test_runner.py)."""
+    """Planning actions after the first fault that were not routine (as
+    tests/planner/runner/test_runner.py)."""
     first = next((k for k, e in enumerate(events) if e.kind == "fault"), len(events))
     return [e for e in events[first:] if e.kind == "plan" and e.detail["reason"] not in ROUTINE]
 

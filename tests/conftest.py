@@ -29,7 +29,7 @@ if "SP_CACHE_DIR" not in os.environ:
 def station(tmp_path):  # type: ignore[no-untyped-def]
     """A running demo station on a fresh SQLite file (in-process; `station.serve()` for a
     real HTTP server)."""
-    from tests.stations import start_station
+    from tests.support.stations import start_station
 
     running = start_station(tmp_path)
     yield running
@@ -63,7 +63,7 @@ def browser():  # type: ignore[no-untyped-def]
 @pytest.fixture
 def served(tmp_path):  # type: ignore[no-untyped-def]
     """A running demo station served by uvicorn on 127.0.0.1 (for the browser tests)."""
-    from tests.stations import start_station
+    from tests.support.stations import start_station
 
     running = start_station(tmp_path)
     running.serve()

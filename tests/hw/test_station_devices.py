@@ -1,0 +1,107 @@
+"""The station on emulated devices: the runner never trusts a device it cannot hear.
+
+The demo's device file, its emulators on a free block of loopback addresses, and the runner
+stepped in real time on them (`StationCycle`, as the live station does).  Each resource's
+devices are cut in turn (the scenario fault `disconnect`, acted out on the emulator); the
+runner must mark the resource unavailable within the devices' heartbeat time-out plus its
+own, and available again once it answers.  A device that answers nonsense (malformed
+frames) counts as not answering.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+import pytest
+
+from app.station.cycle import StationCycle
+from app.station.emulated import EmulatedStation, emulate, start_values
+from hw.device_file import load_devices
+from hw.device_file.spec import DeviceFile
+from hw.faults import Fault, FaultKind
+from hw.ur.emulator.launch import free_block, on_block
+from planner.model.station import Station
+from planner.planning.operation_planner import OperationPlanner
+from planner.planning.transition_planner import TransitionPlanner
+from planner.reading import load_station
+from planner.runner import Runner, RunnerConfig
+from tests.support.paths import REPOSITORY
+
+ROOT = REPOSITORY
+MODEL = ROOT / "models" / "demo_station.yaml"
+DEVICES = ROOT / "models" / "demo_station.devices.yaml"
+CONFIG = RunnerConfig(heartbeat_timeout=1.0, auto_intentions=frozenset())
+PERIOD = 0.1
+
+
+@dataclass
+class Running:
+    station: Station
+    devices: DeviceFile
+    emulated: EmulatedStation
+    cycle: StationCycle
+
+    def run_until(self, holds: object, limit: float) -> float:
+        """Steps the station every period until `holds()`; the seconds it took."""
+        started = time.monotonic()
+        while time.monotonic() - started < limit:
+            self.cycle.step(time.monotonic())
+            if holds():  # type: ignore[operator]
+                return time.monotonic() - started
+            time.sleep(PERIOD)
+        raise AssertionError(f"not within {limit} s")
+
+
+@pytest.fixture(scope="module")
+def running() -> Iterator[Running]:
+    station = load_station(MODEL.read_text(), str(MODEL))
+    text = on_block(DEVICES.read_text(), free_block(range(120, 200)))  # bench/devices.py: 200+
+    devices = load_devices(text, "demo.devices.yaml", station)
+    start = start_values(station, {})
+    with emulate(station, devices, start) as emulated:
+        assert emulated.devices.wait_until_ready(30.0) == []
+        runner = Runner(
+            station, TransitionPlanner(station.model), OperationPlanner(station), CONFIG
+        )
+        cycle = StationCycle(runner, emulated.devices, runner.initial(time.monotonic()))
+        yield Running(station, devices, emulated, cycle)
+
+
+CUT = ["r1", "r2", "r1_tc", "r2_tc", "r1_cam", "r2_cam", "nr"]
+
+
+@pytest.mark.parametrize("resource", CUT)
+def test_a_cut_device_is_unavailable_within_its_time_out_and_back_when_it_answers(
+    running: Running, resource: str
+) -> None:
+    state = lambda: running.cycle.state  # noqa: E731
+    running.run_until(lambda: not state().unavailable, 10.0)
+    timeout = max(d.heartbeat_timeout for d in running.devices.devices if d.resource == resource)
+    running.emulated.devices.inject(Fault(FaultKind.DISCONNECT, resource=resource))
+    took = running.run_until(lambda: resource in state().unavailable, 10.0)
+    assert took <= timeout + CONFIG.heartbeat_timeout + 4 * PERIOD
+    assert state().unavailable == {resource}  # the others carry on
+    link = running.emulated.devices.links()[resource]
+    assert not link.connected and link.error
+    running.emulated.devices.inject(Fault(FaultKind.RECONNECT, resource=resource))
+    running.run_until(lambda: resource not in state().unavailable, 10.0)
+    assert running.emulated.devices.links()[resource].connected
+
+
+def test_a_device_that_talks_nonsense_is_not_trusted(running: Running) -> None:
+    state = lambda: running.cycle.state  # noqa: E731
+    running.run_until(lambda: not state().unavailable, 10.0)
+    running.emulated.world.request("nr", {"op": "garbage", "count": 1000, "kind": "short"})
+    running.run_until(lambda: "nr" in state().unavailable, 5.0)
+    assert "nr" not in running.emulated.devices.read().heartbeats
+    running.emulated.world.request("nr", {"op": "reset"})
+    running.run_until(lambda: "nr" not in state().unavailable, 10.0)
+
+
+def test_people_s_changes_reach_the_runner_as_observed_product_states(running: Running) -> None:
+    running.emulated.devices.inject(Fault(FaultKind.SET, values={"bp2.state": "placed"}))
+    running.run_until(lambda: running.cycle.state.values["bp2.state"] == "placed", 3.0)
+    running.emulated.devices.inject(Fault(FaultKind.SET, values={"mir.docked": False}))
+    running.run_until(lambda: running.cycle.state.values["mir.docked"] is False, 3.0)

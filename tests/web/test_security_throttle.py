@@ -1,0 +1,174 @@
+"""Issue 15, point 3: sign-in throttling that slows guessing without locking the real user
+out.  X-Forwarded-For counts only from a trusted proxy (none by default); concurrent guesses
+are checked no more often than the limit allows; a real user elsewhere still signs in; an
+unknown name costs a password check like a known one; the throttle's memory is bounded;
+throttled attempts do not flood the audit log."""
+
+from __future__ import annotations
+
+import itertools
+from concurrent.futures import ThreadPoolExecutor
+
+import pytest
+from starlette.testclient import TestClient
+
+from app.people.throttle import Attempt, Refused, SignInThrottle
+from app.web import auth_routes
+from app.web.server import parse_networks
+from tests.support.stations import RunningStation, form_token, new_password
+
+
+def client_at(station: RunningStation, address: str) -> TestClient:
+    return TestClient(station.built.app, base_url="http://127.0.0.1", client=(address, 40000))
+
+
+def try_password(client: TestClient, name: str, password: str, **headers: str) -> int:
+    token = form_token(client.get("/login").text)
+    form = {"name": name, "password": password, "csrf_token": token}
+    return client.post("/login", data=form, headers=headers, follow_redirects=False).status_code
+
+
+def audited(station: RunningStation, subject: str, user: str) -> int:
+    with station.built.server.store.engine.connect() as connection:
+        found = connection.exec_driver_sql(
+            "SELECT count(*) FROM audit WHERE kind = 'login' AND subject = ? AND user = ?",
+            (subject, user),
+        ).scalar()
+    return int(found or 0)
+
+
+def test_x_forwarded_for_from_an_untrusted_client_changes_nothing(
+    station: RunningStation,
+) -> None:
+    attacker = client_at(station, "10.1.1.1")
+    for k in range(5):
+        assert (
+            try_password(attacker, "engineer", "guess", **{"X-Forwarded-For": f"10.9.9.{k}"}) == 401
+        )
+    spoofed = try_password(attacker, "engineer", "guess", **{"X-Forwarded-For": "10.9.9.99"})
+    assert spoofed == 429
+
+
+def test_a_trusted_proxy_is_believed_about_its_clients(station: RunningStation) -> None:
+    station.built.server.trusted_proxies = parse_networks(["10.0.0.0/24"])
+    proxy = client_at(station, "10.0.0.5")
+    for _ in range(5):
+        assert try_password(proxy, "auditor", "guess", **{"X-Forwarded-For": "192.0.2.7"}) == 401
+    assert try_password(proxy, "auditor", "guess", **{"X-Forwarded-For": "192.0.2.7"}) == 429
+    # another client behind the same proxy is another address
+    assert try_password(proxy, "auditor", "guess", **{"X-Forwarded-For": "192.0.2.8"}) == 401
+    # a throttled client cannot escape by sending a header of its own: the proxy appends
+    # the address it saw, and that is the one believed
+    forged = {"X-Forwarded-For": "192.0.2.9, 192.0.2.7"}
+    assert try_password(proxy, "auditor", "guess", **forged) == 429
+
+
+def test_concurrent_guesses_are_checked_no_more_often_than_the_limit(
+    station: RunningStation,
+) -> None:
+    attacker = client_at(station, "10.2.2.2")
+    token = form_token(attacker.get("/login").text)
+    form = {"name": "operator", "password": "guess-guess", "csrf_token": token}
+
+    def guess(_: int) -> int:
+        return attacker.post("/login", data=form, follow_redirects=False).status_code
+
+    with ThreadPoolExecutor(max_workers=20) as pool:
+        statuses = list(pool.map(guess, range(40)))
+    assert statuses.count(401) <= station.built.server.throttle.pair_limit
+    assert set(statuses) <= {401, 429}
+    assert audited(station, "failed", "operator") == statuses.count(401)
+
+
+def test_the_real_user_signs_in_from_elsewhere_while_someone_guesses(
+    station: RunningStation,
+) -> None:
+    real = station.client()
+    station.login(real, "engineer")  # the real user's own device is known from now on
+    real.post("/logout", data={"csrf_token": form_token(real.get("/login").text)})
+    for k in range(12):  # many addresses, each below its own limit: the name is slowed
+        attacker = client_at(station, f"10.3.3.{k // 4}")
+        status = try_password(attacker, "engineer", "guess")
+        assert status in (401, 429)
+    assert try_password(real, "engineer", new_password("engineer")) == 303
+    # a new device is only slowed (a bounded wait), never locked out for the window
+    elsewhere = client_at(station, "10.4.4.4")
+    status = try_password(elsewhere, "engineer", new_password("engineer"))
+    if status == 429:
+        page = elsewhere.post(
+            "/login",
+            data={
+                "name": "engineer",
+                "password": "x",
+                "csrf_token": form_token(elsewhere.get("/login").text),
+            },
+        )
+        wait = int(page.text.split("try again in ")[1].split(" s")[0])
+        assert wait <= station.built.server.throttle.max_delay + 1
+    else:
+        assert status == 303
+
+
+def test_an_unknown_name_costs_a_password_check_like_a_known_one(
+    station: RunningStation, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    checked: list[str] = []
+    real = auth_routes.password_matches
+
+    def counting(stored: str, password: str) -> bool:
+        checked.append(stored)
+        return real(stored, password)
+
+    monkeypatch.setattr(auth_routes, "password_matches", counting)
+    client = client_at(station, "10.5.5.5")
+    assert try_password(client, "nobody-here", "guess") == 401
+    assert try_password(client, "operator", "guess") == 401
+    assert len(checked) == 2
+    assert all(stored.startswith("$argon2") for stored in checked)  # the same work either way
+
+
+def test_the_throttles_memory_is_bounded() -> None:
+    clock = itertools.count()
+    throttle = SignInThrottle(max_keys=1000, clock=lambda: float(next(clock)))
+    for k in range(20_000):
+        attempt = throttle.begin(f"name{k}", f"10.{k % 250}.{k // 250 % 250}.1")
+        assert isinstance(attempt, Attempt)
+        throttle.end(attempt, False)
+    assert throttle.keys() <= 1000
+
+
+def test_counters_leave_with_the_window() -> None:
+    now = [0.0]
+    throttle = SignInThrottle(window=300.0, clock=lambda: now[0])
+    for k in range(50):
+        attempt = throttle.begin(f"n{k}", f"10.0.0.{k}")
+        assert isinstance(attempt, Attempt)
+        throttle.end(attempt, False)
+        now[0] += 1
+    now[0] += 1000.0
+    for k in range(20):  # new counters sweep the expired ones out
+        attempt = throttle.begin(f"m{k}", "10.0.0.2")
+        assert isinstance(attempt, Attempt)
+        throttle.end(attempt, True)
+    assert throttle.keys() < 100
+
+
+def test_throttled_attempts_leave_one_record_per_window(station: RunningStation) -> None:
+    attacker = client_at(station, "10.6.6.6")
+    statuses = [try_password(attacker, "admin", "guess") for _ in range(60)]
+    assert statuses.count(401) == 5 and statuses.count(429) == 55
+    assert audited(station, "throttled", "admin") == 1
+    assert audited(station, "failed", "admin") == 5
+
+
+def test_a_throttled_name_and_address_stay_refused_until_the_window_ends() -> None:
+    now = [0.0]
+    throttle = SignInThrottle(window=300.0, clock=lambda: now[0])
+    for _ in range(5):
+        attempt = throttle.begin("anna", "10.0.0.1")
+        assert isinstance(attempt, Attempt)
+        throttle.end(attempt, False)
+    refused = throttle.begin("anna", "10.0.0.1")
+    assert isinstance(refused, Refused) and 0 < refused.wait <= 300
+    now[0] = 301.0
+    assert isinstance(throttle.begin("anna", "10.0.0.1"), Attempt)

@@ -1,0 +1,126 @@
+"""An admin's work on the users page (issue 16): reset a password (the user chooses their own
+at the next sign-in), change a role, see each user's last sign-in.  Each change is audited,
+ends the user's sessions, and the last admin can neither step down nor be disabled."""
+
+from __future__ import annotations
+
+import json
+import re
+
+from sqlalchemy import select
+from starlette.testclient import TestClient
+
+from app.store.tables import AuditRecord
+from tests.support.stations import RunningStation, form_token, new_password
+
+RESET = "a-fresh-start-42"
+
+
+def signed_in(client: TestClient) -> bool:
+    return client.get("/alarms", follow_redirects=False).status_code == 200
+
+
+def user_records(station: RunningStation, subject: str) -> list[dict[str, object]]:
+    with station.built.server.store.sessions() as session:
+        query = select(AuditRecord).where(AuditRecord.kind == "user")
+        rows = session.scalars(query.where(AuditRecord.subject == subject))
+        return [{"by": r.user, **json.loads(r.detail)} for r in rows]
+
+
+def row(page: str, name: str) -> str:
+    found = re.search(rf'<tr data-user="{name}">(.*?)</tr>', page, re.S)
+    assert found, f"no row for {name}"
+    return found.group(1)
+
+
+def sign_in(client: TestClient, name: str, password: str) -> str:
+    """The login form; returns where it sends the user ("refused" for a wrong password)."""
+    form = {"name": name, "password": password, "csrf_token": form_token(client.get("/login").text)}
+    answer = client.post("/login", data=form, follow_redirects=False)
+    if answer.status_code == 401:
+        return "refused"
+    assert answer.status_code == 303, answer.text
+    return str(answer.headers["location"])
+
+
+def test_a_reset_password_ends_the_sessions_and_must_be_changed(station: RunningStation) -> None:
+    admin, watch = station.client(), station.client()
+    token = station.login(admin, "admin")
+    station.login(watch, "operator")
+    assert signed_in(watch)
+    page = admin.get("/users").text
+    assert "never" not in row(page, "operator")  # signed in just now: its time is shown
+    assert re.search(r"\d{4}-\d\d-\d\d \d\d:\d\d UTC", row(page, "operator"))
+    assert "never" in row(page, "auditor")
+
+    form = {"name": "operator", "password": RESET, "csrf_token": token}
+    answer = admin.post("/users/password", data=form)
+    assert answer.status_code == 200 and "new first-login password" in answer.text
+    assert not signed_in(watch)
+    (record,) = user_records(station, "password reset")
+    assert record == {"by": "admin", "name": "operator", "sessions_ended": 1}
+    assert "first-login password" in row(answer.text, "operator")
+
+    fresh = station.client()
+    assert sign_in(fresh, "operator", new_password("operator")) == "refused"  # the old one
+    assert sign_in(fresh, "operator", RESET) == "/password"  # the reset one, to be changed
+    short = admin.post("/users/password", data={**form, "password": "short"})
+    assert short.status_code == 422
+    mine = admin.post("/users/password", data={**form, "name": "admin"})
+    assert mine.status_code == 409 and "Change password" in mine.text
+
+
+def test_a_new_role_ends_the_sessions_and_holds_from_the_next_sign_in(
+    station: RunningStation,
+) -> None:
+    admin, laptop = station.client(), station.client()
+    token = station.login(admin, "admin")
+    station.login(laptop, "engineer")
+    assert laptop.get("/station").status_code == 200
+    answer = admin.post(
+        "/users/role", data={"name": "engineer", "role": "auditor", "csrf_token": token}
+    )
+    assert answer.status_code == 200 and "engineer is now an auditor" in answer.text
+    assert '<td data-label="Role">auditor</td>' in row(answer.text, "engineer")
+    assert not signed_in(laptop)
+    (record,) = user_records(station, "role changed")
+    assert record == {
+        "by": "admin",
+        "name": "engineer",
+        "role": "auditor",
+        "previous": "engineer",
+        "sessions_ended": 1,
+    }
+    sign_in(laptop, "engineer", new_password("engineer"))
+    assert laptop.get("/station", follow_redirects=False).status_code == 403
+    assert laptop.get("/audit").status_code == 200
+    same = admin.post(
+        "/users/role", data={"name": "engineer", "role": "auditor", "csrf_token": token}
+    )
+    assert same.status_code == 409 and "already an auditor" in same.text
+    unknown = admin.post(
+        "/users/role", data={"name": "engineer", "role": "boss", "csrf_token": token}
+    )
+    assert unknown.status_code == 422
+
+
+def test_the_last_admin_can_neither_step_down_nor_be_disabled(station: RunningStation) -> None:
+    admin = station.client()
+    token = station.login(admin, "admin")
+    down = {"name": "admin", "role": "engineer", "csrf_token": token}
+    refused = admin.post("/users/role", data=down)
+    assert refused.status_code == 409 and "the last admin" in refused.text
+    disabled = admin.post(
+        "/users/disable", data={"name": "admin", "disabled": "true", "csrf_token": token}
+    )
+    assert disabled.status_code == 409
+    assert signed_in(admin) and not user_records(station, "role changed")
+
+    # with a second admin the first may step down, and is signed out with it
+    second = {"name": "auditor", "role": "admin", "csrf_token": token}
+    assert admin.post("/users/role", data=second).status_code == 200
+    stepped = admin.post("/users/role", data=down, follow_redirects=False)
+    assert stepped.status_code == 303 and stepped.headers["location"] == "/login"
+    assert not signed_in(admin)
+    changes = [(r["name"], r["role"]) for r in user_records(station, "role changed")]
+    assert changes == [("auditor", "admin"), ("admin", "engineer")]
