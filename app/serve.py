@@ -28,7 +28,7 @@ from app.station.live import DeviceSetup, LiveStation
 from app.station.scenario import Scenario
 from app.station.view import build_model
 from app.store import audit, versions
-from app.store.audit import AuditEntry
+from app.store.audit import AuditEntry, AuditKind
 from app.store.checkpoints import Checkpointer
 from app.store.db import open_store
 from app.store.keys import default_key_path
@@ -91,7 +91,8 @@ def build(
 
     def added(users: list[tuple[str, str, str]]) -> list[AuditEntry]:
         return [
-            AuditEntry("user", "added", "sp serve", "", {"name": n, "role": r}) for n, r, _ in users
+            AuditEntry(AuditKind.USER, "added", "sp serve", "", {"name": n, "role": r})
+            for n, r, _ in users
         ]
 
     seeded = audit.write(store, name, added, time.time(), also=seed) or []

@@ -33,7 +33,7 @@ from app.station.page_updates import PageUpdates
 from app.station.planning_worker import PlanningWorker
 from app.station.scenario import Scenario
 from app.station.view import ActiveModel, DeviceLink, StationView
-from app.store.audit import AuditEntry
+from app.store.audit import AuditEntry, AuditKind
 from app.store.db import Store
 from hw.devices import Devices, Restorable
 from hw.faults import Fault, FaultInjection
@@ -44,6 +44,7 @@ from planner.model.station import Station
 from planner.runner import (
     Action,
     Event,
+    EventKind,
     IntentionState,
     OperationState,
     Reply,
@@ -224,7 +225,7 @@ class LiveStation:
                 self.round()
             except Exception:  # the loop must go on; the cause is logged and audited
                 log.exception("station round failed")
-                self._audit_now([AuditEntry("error", "station round failed")])
+                self._audit_now([AuditEntry(AuditKind.ERROR, "station round failed")])
             self.rounds.append((started, self.clock() - started))
             next_tick += self.period
             delay = next_tick - self.clock()
@@ -432,13 +433,17 @@ class LiveStation:
                 person, watch = shown[0]
                 done = self.devices.perform(watch.confirm)
                 detail = {"card": str(payload)}
-                entries.append(AuditEntry("operator", "card done", user, person.name, detail))
+                entries.append(
+                    AuditEntry(EventKind.OPERATOR, "card done", user, person.name, detail)
+                )
                 return done
             case "fault":
                 fault, text = payload
                 self.cycle.inject(fault)
                 resource = fault.resource or self.runner.index.owner.get(fault.effect, "")
-                entries.append(AuditEntry("fault", fault.kind, user, resource, {"fault": text}))
+                entries.append(
+                    AuditEntry(EventKind.FAULT, fault.kind, user, resource, {"fault": text})
+                )
                 return None
             case "experiment":
                 self._start_experiment(payload[0], payload[1], now, user, entries)
@@ -548,7 +553,7 @@ class LiveStation:
         self.cycle = StationCycle(runner, self.devices, state)
         records.set_active_version(self.store, self.name, prepared.model.version_id)
         detail = {"version": prepared.model.number, "previous": old.number}
-        entries.append(AuditEntry("model", "activated", user, "", detail))
+        entries.append(AuditEntry(AuditKind.MODEL, "activated", user, "", detail))
 
     def _start_experiment(
         self, scenario: Scenario, title: str, now: float, user: str, entries: list[AuditEntry]
@@ -565,7 +570,7 @@ class LiveStation:
         self.cycle = StationCycle(runner, self.devices, state, faults)
         self.experiment = title
         self.run_ended = f"{user} played the experiment {title}"
-        entries.append(AuditEntry("experiment", title, user, "", {"file": scenario.file}))
+        entries.append(AuditEntry(AuditKind.EXPERIMENT, title, user, "", {"file": scenario.file}))
         for name in scenario.intentions or ():
             self.requests.put(_Request("action", StartIntention(user=user, name=name), user))
 

@@ -17,7 +17,7 @@ from sqlalchemy.orm import Session
 
 from app.station.alarms import Alarm, AlarmBook, AlarmChange, AlarmState, Priority
 from app.store import audit
-from app.store.audit import AuditEntry
+from app.store.audit import AuditEntry, AuditKind
 from app.store.db import Store
 from app.store.tables import AlarmRecord, StationRecord
 from planner.runner import Event, Runner
@@ -107,7 +107,7 @@ def event_entry(runner: Runner, event: Event) -> AuditEntry:
     detail.pop("subject", None)
     detail["station_time"] = detail.pop("time", round(event.time, 3))
     user = str(event.detail.get("user", ""))
-    return AuditEntry(event.kind.value, event.subject, user, resource_of(runner, event), detail)
+    return AuditEntry(event.kind, event.subject, user, resource_of(runner, event), detail)
 
 
 def resource_of(runner: Runner, event: Event) -> str:
@@ -136,7 +136,7 @@ def alarm_entry(change: AlarmChange) -> AuditEntry:
     }
     if change.note:
         detail["note"] = change.note
-    return AuditEntry("alarm", change.key, change.user or "", alarm.resource, detail)
+    return AuditEntry(AuditKind.ALARM, change.key, change.user or "", alarm.resource, detail)
 
 
 def alarm_to_json(alarm: Alarm) -> str:

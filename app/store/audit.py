@@ -19,6 +19,7 @@ import io
 import json
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
+from enum import StrEnum
 from typing import Any, TypeVar
 
 from sqlalchemy import Select, func, select
@@ -29,6 +30,7 @@ from app.store.db import Store
 from app.store.keys import StationKeys
 from app.store.seals import record_mac
 from app.store.tables import AuditRecord
+from planner.runner.vocabulary import EventKind
 
 T = TypeVar("T")
 ATTEMPTS = 5  # commits lost to another process's writer before giving up
@@ -38,11 +40,37 @@ PAGE_SIZE = 100
 CSV_COLUMNS = ("id", "time", "station", "user", "kind", "subject", "resource", "detail", "hash")
 
 
+class AuditKind(StrEnum):
+    """The kinds of the records that are not the runner's events (`EventKind`): what people
+    and the station process itself do.  A record's kind is one of the two enums."""
+
+    ALARM = "alarm"  # an alarm changed state (the book's change, or a person's answer)
+    AUDIT = "audit"  # the log itself: a checkpoint, a verification
+    ERROR = "error"  # the station process failed in a round
+    EXPERIMENT = "experiment"  # an engineer played an experiment (the station put back)
+    LOGIN = "login"  # a sign-in, a token, a sign-out
+    MODEL = "model"  # a model version saved or activated
+    USER = "user"  # a user added, changed, disabled; a tampered row
+
+
+RecordKind = EventKind | AuditKind
+
+
+def record_kind(text: str) -> RecordKind | None:
+    """The kind a stored record's text names (None for a kind this code does not know)."""
+    for kinds in (EventKind, AuditKind):
+        try:
+            return kinds(text)
+        except ValueError:
+            continue
+    return None
+
+
 @dataclass(frozen=True)
 class AuditEntry:
     """What is to be recorded; the id, previous hash and hash are added on append."""
 
-    kind: str
+    kind: RecordKind
     subject: str = ""
     user: str = ""
     resource: str = ""

@@ -8,7 +8,7 @@ from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from app.store import audit, seals
-from app.store.audit import AuditEntry
+from app.store.audit import AuditEntry, AuditKind
 from app.store.db import Store
 from app.store.keys import StationKeys
 from app.store.tables import AuditRecord
@@ -32,7 +32,7 @@ def seal_store(store: Store, key_path: Path | None, station: str, now: float) ->
             legacy = session.scalar(select(func.count()).select_from(AuditRecord)) or 0
         users = audit.write(store, station, [], now, also=seal) or []
         detail = {"users": users, "records_before": legacy, "key_file": str(key_path or "")}
-        entry = AuditEntry("audit", "sealed", "", "", detail)
+        entry = AuditEntry(AuditKind.AUDIT, "sealed", "", "", detail)
         audit.write(store, station, [entry], now)
     seals.install(store.sessions, keys)
     return keys

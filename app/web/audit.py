@@ -28,7 +28,7 @@ from sqlalchemy.orm import Session
 
 from app.people.auth import Permission
 from app.store import audit
-from app.store.audit import AuditEntry, AuditFilter
+from app.store.audit import AuditEntry, AuditFilter, AuditKind
 from app.store.tables import AuditRecord
 from app.web.deps import Caller, page_context, require, server
 from planner.words import Wording
@@ -460,7 +460,9 @@ def audit_csv(
     """The filtered log as CSV, oldest first; the export is audited before it starts."""
     srv = server(request)
     now = srv.live.wall()
-    export = AuditEntry("audit", "csv export", caller.name, "", {"filter": chosen.described()})
+    export = AuditEntry(
+        AuditKind.AUDIT, "csv export", caller.name, "", {"filter": chosen.described()}
+    )
     audit.write(srv.store, srv.live.name, [export], now)
 
     def lines() -> Iterator[str]:

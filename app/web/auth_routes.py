@@ -23,7 +23,7 @@ from app.people.auth import hash_password as new_hash
 from app.people.sessions import SessionKind
 from app.people.throttle import Refused
 from app.store import audit
-from app.store.audit import AuditEntry
+from app.store.audit import AuditEntry, AuditKind, RecordKind
 from app.store.tables import User
 from app.web.deps import (
     browser_session,
@@ -40,7 +40,7 @@ router = APIRouter()
 CHECK_WAIT = 10.0  # seconds a sign-in waits for a free password check before "busy"
 
 
-def _audit(srv: Server, kind: str, subject: str, user: str, **detail: object) -> None:
+def _audit(srv: Server, kind: RecordKind, subject: str, user: str, **detail: object) -> None:
     entry = AuditEntry(kind, subject, user, "", detail)
     audit.write(srv.store, srv.live.name, [entry], srv.live.wall())
 
@@ -71,7 +71,9 @@ def check_password(request: Request, name: str, password: str) -> User:
     attempt = srv.throttle.begin(name, address)
     if isinstance(attempt, Refused):
         if attempt.audit:
-            _audit(srv, "login", "throttled", name[:64], address=address, **_unaudited(attempt))
+            _audit(
+                srv, AuditKind.LOGIN, "throttled", name[:64], address=address, **_unaudited(attempt)
+            )
         raise HTTPException(
             429, f"too many failed sign-ins; try again in {int(attempt.wait) + 1} s"
         )
@@ -96,7 +98,7 @@ def check_password(request: Request, name: str, password: str) -> User:
     finally:
         srv.throttle.end(attempt, user is not None)
     if user is None:
-        _audit(srv, "login", "failed", name[:64], address=address, why=why)
+        _audit(srv, AuditKind.LOGIN, "failed", name[:64], address=address, why=why)
         raise HTTPException(401, "wrong user name or password")
     return user
 
@@ -110,7 +112,7 @@ def _open(srv: Server, user: User, kind: SessionKind, address: str) -> str:
         return user_sessions.open_session(session, user, kind, address, srv.live.wall())
 
     entry = AuditEntry(
-        "login",
+        AuditKind.LOGIN,
         "signed in" if kind is SessionKind.BROWSER else "api token",
         user.name,
         "",
@@ -158,7 +160,7 @@ def logout(
         def end(session: Session) -> None:
             user_sessions.revoke(session, secret, "signed out", srv.live.wall())
 
-        entry = AuditEntry("login", "signed out", found.user.name)
+        entry = AuditEntry(AuditKind.LOGIN, "signed out", found.user.name)
         audit.write(srv.store, srv.live.name, [entry], srv.live.wall(), also=end)
         request.session.clear()
     return RedirectResponse("/login", status_code=303)
@@ -220,7 +222,7 @@ def change_password(
         detail["sessions_ended"] = ended
         return secret
 
-    entry = AuditEntry("login", "password changed", user.name, "", detail)
+    entry = AuditEntry(AuditKind.LOGIN, "password changed", user.name, "", detail)
     secret = audit.write(srv.store, srv.live.name, [entry], now, also=change) or ""
     request.session.clear()
     request.session.update(sid=secret, uid=user.id)

@@ -24,7 +24,7 @@ from app.people.auth import Permission, allowed, new_csrf_token, same_token
 from app.people.sessions import SessionKind
 from app.station.view import StationView
 from app.store import audit, seals
-from app.store.audit import AuditEntry
+from app.store.audit import AuditEntry, AuditKind
 from app.store.tables import User
 from app.web.server import Network, Server
 
@@ -103,7 +103,9 @@ def trusted_user(srv: Server, user: User) -> bool:
     if user.name not in srv.tampered:
         srv.tampered.add(user.name)
         log.warning("user '%s': the row does not match its seal; refused", user.name)
-        entry = AuditEntry("user", "row changed outside the station", "", "", {"name": user.name})
+        entry = AuditEntry(
+            AuditKind.USER, "row changed outside the station", "", "", {"name": user.name}
+        )
         audit.write(srv.store, srv.live.name, [entry], srv.live.wall())
     return False
 

@@ -18,7 +18,7 @@ from starlette.concurrency import run_in_threadpool
 
 from app.station.view import build_model
 from app.store import audit, versions
-from app.store.audit import AuditEntry
+from app.store.audit import AuditEntry, AuditKind
 from app.store.tables import ModelVersion
 from app.web.actions import answer
 from app.web.server import Server
@@ -70,7 +70,9 @@ def save(
         return row
 
     def saved(row: ModelVersion) -> list[AuditEntry]:
-        return [AuditEntry("model", "saved", author, "", {"version": row.number, "note": note})]
+        return [
+            AuditEntry(AuditKind.MODEL, "saved", author, "", {"version": row.number, "note": note})
+        ]
 
     row = audit.write(srv.store, name, saved, srv.live.wall(), also=add)
     assert row is not None

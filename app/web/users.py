@@ -30,7 +30,7 @@ from app.people.auth import (
     user_named,
 )
 from app.store import audit
-from app.store.audit import AuditEntry
+from app.store.audit import AuditEntry, AuditKind
 from app.store.seals import TamperedUser
 from app.store.tables import AuditRecord, User
 from app.web.deps import Caller, page_context, require, server
@@ -139,7 +139,7 @@ def add(
         add_user(session, name, role, password, must_change=True)
         return True
 
-    entry = AuditEntry("user", "added", caller.name, "", {"name": name, "role": role})
+    entry = AuditEntry(AuditKind.USER, "added", caller.name, "", {"name": name, "role": role})
     try:
         done = audit.write(srv.store, srv.live.name, [entry], srv.live.wall(), also=added)
     except IntegrityError:  # another station of the same database took the name just now
@@ -171,7 +171,7 @@ def disable(
         if disabled:  # whatever they had signed in with ends now
             detail["sessions_ended"] = user_sessions.revoke_all(session, user.id, "disabled", now)
 
-    _write(srv, AuditEntry("user", subject, caller.name, "", detail), now, change)
+    _write(srv, AuditEntry(AuditKind.USER, subject, caller.name, "", detail), now, change)
     return _page(request, caller, message=f"{name} is {subject}")
 
 
@@ -199,7 +199,7 @@ def reset_password(
         user.must_change_password = True
         detail["sessions_ended"] = user_sessions.revoke_all(session, user.id, "password reset", now)
 
-    _write(srv, AuditEntry("user", "password reset", caller.name, "", detail), now, reset)
+    _write(srv, AuditEntry(AuditKind.USER, "password reset", caller.name, "", detail), now, reset)
     return _page(
         request, caller, message=f"{name} has a new first-login password; they choose their own"
     )
@@ -233,7 +233,7 @@ def change_role(
         user.role = role
         detail["sessions_ended"] = user_sessions.revoke_all(session, user.id, "role changed", now)
 
-    _write(srv, AuditEntry("user", "role changed", caller.name, "", detail), now, change)
+    _write(srv, AuditEntry(AuditKind.USER, "role changed", caller.name, "", detail), now, change)
     if name == caller.name:  # their own session ended with the others
         request.session.clear()
         return RedirectResponse("/login", status_code=303)

@@ -135,5 +135,6 @@ class EventKind(StrEnum):
     RESET = "reset"  # an operation reset in restart mode reached its precondition, or not
     ERROR = "error"  # anything else that needs a person (an automatic cycle)
     FAULT = "fault"  # a fault injected into the simulated world (scenarios, demo)
+    RUN = "run"  # a run of the station's intentions started or ended (app.station.runs)
     DONE = "done"  # every intention finished (the last event of `sp run`)
     STOPPED = "stopped"  # the run ended before that (the last event of `sp run`)
