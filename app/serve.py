@@ -16,7 +16,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from fastapi import FastAPI
-from sqlalchemy.orm import Session
 
 from app.pages.cards import station_activity, task_cards
 from app.people.auth import seed_demo_users
@@ -24,13 +23,13 @@ from app.people.sessions import ApiTokens
 from app.people.throttle import SignInThrottle
 from app.station import supervisor_cache
 from app.station.experiments import experiments
-from app.station.live import DeviceSetup, LiveStation
-from app.station.scenario import Scenario
-from app.station.view import build_model
+from app.station.live import LiveStation
+from app.station.running import DeviceSetup, simulated_devices
+from app.station.view import ActiveModel, build_model
 from app.store import audit, versions
 from app.store.audit import AuditEntry, AuditKind
 from app.store.checkpoints import Checkpointer
-from app.store.db import open_store
+from app.store.db import Store, open_store
 from app.store.keys import default_key_path
 from app.store.sealing import seal_store
 from app.web.app import create_app
@@ -58,7 +57,6 @@ def build(
     *,
     station_name: str | None = None,
     cache: Path | None = None,
-    simulated: bool = True,
     period: float = 0.1,
     speed: float = 1.0,
     secure_cookies: bool = False,
@@ -72,7 +70,8 @@ def build(
 ) -> Built:
     """Open (and migrate) the store, load the active model, restore the station, make the app.
 
-    `devices`: the station's devices (`on_devices`); by default the simulated world.
+    `devices`: the station's devices (`on_devices`); by default the simulated world (the
+    simulation panel and its experiments are there on all but real devices).
     `keys`: the key file (app.store.keys; by default beside a SQLite file).
     `trusted_proxies`: addresses (or networks) of reverse proxies whose X-Forwarded-For is
     believed; none by default.
@@ -80,47 +79,24 @@ def build(
     """
     say = progress or (lambda _line: None)
     say("opening the store")
-    store = open_store(url)
-    store.upgrade()
+    store = _open_store(url)
     text = model_path.read_text(encoding="utf-8")
     name = station_name or _station_name(text, model_path)
     station_keys = seal_store(store, keys or default_key_path(url), name, time.time())
-
-    def seed(session: Session) -> list[tuple[str, str, str]]:
-        return seed_demo_users(session) if seed_users else []
-
-    def added(users: list[tuple[str, str, str]]) -> list[AuditEntry]:
-        return [
-            AuditEntry(AuditKind.USER, "added", "sp serve", "", {"name": n, "role": r})
-            for n, r, _ in users
-        ]
-
-    seeded = audit.write(store, name, added, time.time(), also=seed) or []
-    say(f"loading the model {model_path.name}")
-    with store.sessions.begin() as session:
-        version = versions.ensure_active(session, name, text, "sp serve")
-    say(
-        f"preparing the planners of model version {version.number}: its supervisor is"
-        " synthesised on its first start (some seconds), later read from the cache"
-    )
-    model = build_model(version, cache)
+    seeded = _seed_users(store, name) if seed_users else []
+    model = _active_model(store, name, text, model_path.name, cache, say)
     say("restoring the station's last state")
     live = LiveStation(
         store,
         name,
         model,
-        simulated=simulated,
         period=period,
         clock=_scaled_clock(speed),
         planning_delay=planning_delay,
-        devices=devices,
+        devices=devices or simulated_devices,
     )
-    # the task page shows the cards, and restart mode when there are none
-    live.watch_area(
-        "tasks",
-        lambda view: (task_cards(view), view.state.restart_mode, station_activity(view)),
-    )
-    if simulated:
+    _watch_the_task_page(live)
+    if live.simulated:
         say("loading the experiments E1-E9")
     server = Server(
         store,
@@ -128,7 +104,7 @@ def build(
         ApiTokens(station_keys.cookie_secret),
         cache,
         throttle=SignInThrottle(),
-        experiments=experiments(model.station) if simulated else {},
+        experiments=experiments(model.station) if live.simulated else {},
         secure_cookies=secure_cookies,
         trusted_proxies=parse_networks(trusted_proxies),
     )
@@ -137,11 +113,53 @@ def build(
     return Built(create_app(server, station_keys.cookie_secret), server, seeded)
 
 
+def _open_store(url: str) -> Store:
+    """The store at `url`, migrated to this version's tables."""
+    store = open_store(url)
+    store.upgrade()
+    return store
+
+
+def _watch_the_task_page(live: LiveStation) -> None:
+    """The task page shows the cards, and restart mode when there are none: its area is
+    announced only when one of those changes."""
+    live.watch_area(
+        "tasks",
+        lambda view: (task_cards(view), view.state.restart_mode, station_activity(view)),
+    )
+
+
+def _seed_users(store: Store, name: str) -> list[tuple[str, str, str]]:
+    """The demo's users on a store that has none, audited: (name, role, first password)."""
+
+    def added(users: list[tuple[str, str, str]]) -> list[AuditEntry]:
+        return [
+            AuditEntry(AuditKind.USER, "added", "sp serve", "", {"name": n, "role": r})
+            for n, r, _ in users
+        ]
+
+    return audit.write(store, name, added, time.time(), also=seed_demo_users) or []
+
+
+def _active_model(
+    store: Store, name: str, text: str, file: str, cache: Path | None, say: Callable[[str], None]
+) -> ActiveModel:
+    """The station's active model version (the file's text on a new store), made ready."""
+    say(f"loading the model {file}")
+    with store.sessions.begin() as session:
+        version = versions.ensure_active(session, name, text, "sp serve")
+    say(
+        f"preparing the planners of model version {version.number}: its supervisor is"
+        " synthesised on its first start (some seconds), later read from the cache"
+    )
+    return build_model(version, cache)
+
+
 def on_devices(devices: DeviceFile, world: EmulatedWorld | None = None) -> DeviceSetup:
     """The station's devices from a device file: drivers for each device, with the emulated
     world behind them when the devices are emulated (faults from the simulation panel)."""
 
-    def setup(station: Station, start: Mapping[str, Value], scenario: Scenario | None) -> Devices:
+    def setup(station: Station, start: Mapping[str, Value]) -> Devices:
         return StationDevices(devices, station, start, world=world)
 
     return setup

@@ -314,6 +314,10 @@ class Metered:
     def close(self) -> None:
         self.devices.close()
 
+    def __getattr__(self, name: str) -> Any:
+        """What the loop asks besides (kind, inject, restart, restore, for_model): uncounted."""
+        return getattr(self.devices, name)
+
 
 def cpu_seconds(path: str) -> float:
     """utime + stime of /proc/PID/stat or /proc/PID/task/TID/stat, in seconds (0 when gone)."""

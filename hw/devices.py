@@ -13,10 +13,35 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from enum import StrEnum
 from typing import Protocol, runtime_checkable
 
+from hw.faults import Fault
 from hw.link import LinkStatus
 from planner.model.expressions import Value
+from planner.model.station import Station
+
+
+class DeviceKind(StrEnum):
+    """What the station runs on; the simulation panel acts on all but real devices."""
+
+    SIMULATED = "simulated"  # the model's own effects, on the station's clock (hw.simulated)
+    EMULATED = "emulated"  # the real drivers on emulators (hw.emulation)
+    REAL = "real"  # the real drivers on the cell's devices
+
+    @property
+    def can_fail_on_demand(self) -> bool:
+        """Faults, experiments and restarts to a start state act on these devices."""
+        return self is not DeviceKind.REAL
+
+
+@dataclass(frozen=True)
+class Delays:
+    """How long a simulated world takes for each effect or resource (a scenario's `delays`),
+    and for the rest; devices that run in real time keep their own pace."""
+
+    each: Mapping[str, float] = field(default_factory=dict)
+    default: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -34,6 +59,10 @@ class DeviceReport:
 
 
 class Devices(Protocol):
+    @property
+    def kind(self) -> DeviceKind:
+        """Simulated, emulated or real."""
+
     def advance(self, now: float) -> None:
         """Let the devices act on the last commands up to time `now`."""
 
@@ -58,6 +87,22 @@ class Devices(Protocol):
     def close(self) -> None:
         """Stop talking to the devices (drivers, threads, child processes)."""
 
+    def inject(self, fault: Fault) -> None:
+        """Make the devices fail as `fault` says; ValueError on real devices."""
+
+    def restart(self, start: Mapping[str, Value], delays: Delays | None = None) -> None:
+        """Back to `start` for an experiment (a simulated world also takes the experiment's
+        `delays`); what was seen before is forgotten.  ValueError on real devices."""
+
+    def restore(self, saved: Mapping[str, object], now: float) -> None:
+        """Take up the state `dump` saved, after the station process started again; devices
+        that keep their own state (emulated, real) have nothing to take up."""
+
+    def for_model(self, station: Station) -> Devices:
+        """The devices for another model version, made beside the loop: a simulated world
+        makes a new world of that model (which then `restore`s this one's dump); drivers
+        serve every version and give themselves."""
+
 
 @runtime_checkable
 class ModelSimulation(Protocol):
@@ -69,10 +114,3 @@ class ModelSimulation(Protocol):
     """
 
     def follow_estimates(self, values: Mapping[str, Value]) -> None: ...
-
-
-@runtime_checkable
-class Restorable(Protocol):
-    """Devices whose state a station restart can restore (a simulated world)."""
-
-    def load(self, data: Mapping[str, object], now: float) -> None: ...

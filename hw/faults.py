@@ -5,7 +5,6 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from enum import StrEnum
-from typing import Protocol, runtime_checkable
 
 from planner.model.expressions import Value
 
@@ -41,10 +40,3 @@ class Fault:
             except ValueError:
                 shown = ", ".join(FAULTS)
                 raise ValueError(f"unknown fault '{self.kind}'; use one of {shown}") from None
-
-
-@runtime_checkable
-class FaultInjection(Protocol):
-    """Devices that can be made to fail on demand."""
-
-    def inject(self, fault: Fault) -> None: ...

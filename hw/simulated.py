@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-from hw.devices import DeviceReport
+from hw.devices import Delays, DeviceKind, DeviceReport, Devices
 from hw.faults import FAULTS, Fault, FaultKind
 from hw.link import LinkStatus
 from planner.model.expressions import Value
@@ -23,7 +23,14 @@ from planner.model.station import Station
 
 class SimulatedWorld:
     """Devices and products of a station, simulated from its model's effects (it is
-    `hw.devices.Devices` and a `hw.devices.ModelSimulation`)."""
+    `hw.devices.Devices` and a `hw.devices.ModelSimulation`).
+
+    `people_tap`: the taps on the people's watches (their confirm effects) come from the
+    people themselves, at the web HMI, and the world never plays them; by default it plays
+    them after their delay, as in headless runs.
+    """
+
+    kind = DeviceKind.SIMULATED
 
     def __init__(
         self,
@@ -32,7 +39,7 @@ class SimulatedWorld:
         delays: Mapping[str, float] | None = None,
         default_delay: float = 1.0,
         start: Mapping[str, Value] | None = None,
-        manual: frozenset[str] = frozenset(),
+        people_tap: bool = False,
     ) -> None:
         self.station = station
         self.model = station.model
@@ -53,8 +60,8 @@ class SimulatedWorld:
         self.blocked: set[str] = set()
         self.replaced: dict[str, tuple[str, int]] = {}
         self.pending: dict[str, float] = {}  # effect -> when it happens
-        # effects a person performs (a tap on the watch): never played by the world itself
-        self.manual = manual
+        self.people_tap = people_tap
+        manual = frozenset(w.confirm for _, w in station.watches) if people_tap else frozenset()
         self.effects = [
             c
             for c in self.semantics.transitions
@@ -119,6 +126,26 @@ class SimulatedWorld:
     def close(self) -> None:
         """Nothing to stop: the simulation runs in the station's own loop."""
 
+    def restart(self, start: Mapping[str, Value], delays: Delays | None = None) -> None:
+        """Back to the model's initial values and `start` (an experiment), with no fault,
+        nothing pending and, when given, the experiment's `delays`."""
+        self.values = {v.name: v.initial for v in self.model.variables}
+        self.values.update(start)
+        self.observed, self.pending, self.replaced = {}, {}, {}
+        self.disconnected, self.blocked = set(), set()
+        if delays is not None:
+            self.delays, self.default_delay = dict(delays.each), delays.default
+
+    def for_model(self, station: Station) -> Devices:
+        """A world of another model version with this one's delays; it takes up this
+        world's state from `dump` (`restore`) when the station switches to it."""
+        return SimulatedWorld(
+            station,
+            delays=self.delays,
+            default_delay=self.default_delay,
+            people_tap=self.people_tap,
+        )
+
     def dump(self, now: float) -> dict[str, object]:
         """The devices' state as JSON-ready data (pending effects relative to `now`)."""
         return {
@@ -130,7 +157,7 @@ class SimulatedWorld:
             "pending": {k: max(0.0, t - now) for k, t in sorted(self.pending.items())},
         }
 
-    def load(self, data: Mapping[str, object], now: float) -> None:
+    def restore(self, data: Mapping[str, object], now: float) -> None:
         """Resume from `dump` output; names the model no longer has are dropped."""
         known = set(self.values)
         values = data.get("values", {})

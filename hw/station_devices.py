@@ -19,7 +19,7 @@ from typing import Protocol
 
 from hw.adapter import Adapter
 from hw.device_file.spec import DeviceFile, DeviceSpec, DriverKind
-from hw.devices import DeviceReport
+from hw.devices import Delays, DeviceKind, DeviceReport, Devices
 from hw.faults import Fault
 from hw.link import LinkStatus
 from hw.modbus.adapter import RegisterAdapter
@@ -142,9 +142,14 @@ class StationDevices:
             if id(each) in by_adapter:
                 each.write(by_adapter[id(each)])
 
-    def restart(self, start: Mapping[str, Value]) -> None:
+    @property
+    def kind(self) -> DeviceKind:
+        return DeviceKind.REAL if self.world is None else DeviceKind.EMULATED
+
+    def restart(self, start: Mapping[str, Value], delays: Delays | None = None) -> None:
         """Back to `start` for an experiment: the emulated world is reset and the adapters
-        forget what they saw before (readings from before now are not taken)."""
+        forget what they saw before (readings from before now are not taken).  Emulated
+        devices run in real time: an experiment's `delays` are the simulated world's."""
         if self.world is None:
             raise ValueError("only emulated devices can be put back to a start")
         self.world.restart(start)
@@ -162,6 +167,14 @@ class StationDevices:
             if not silent or time.monotonic() >= deadline:
                 return silent
             time.sleep(poll)
+
+    def restore(self, saved: Mapping[str, object], now: float) -> None:
+        """Nothing to take up: the devices keep their own state (the robots stand where
+        they stand) and report it."""
+
+    def for_model(self, station: Station) -> Devices:
+        """The same drivers serve every model version of the station."""
+        return self
 
     def maintenance_done(self, transition: str) -> None:
         """A person did it in the world: emulated devices are told; real ones measure it."""

@@ -17,7 +17,7 @@ never an error: a page must render whatever the runner reports.
 from __future__ import annotations
 
 import re
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 
 from planner.model.expressions import (
     And,
@@ -34,6 +34,7 @@ from planner.model.expressions import (
 from planner.model.flat import Variable
 from planner.model.station import Station
 from planner.reading.display import humanised
+from planner.runner.vocabulary import ReplanReason
 
 # ---- sentences ------------------------------------------------------------------------------
 
@@ -282,3 +283,30 @@ class Wording:
             case _:
                 raise TypeError(expr)
         return f"({text})" if nested else text  # "a or (b and c)": no precedence to know
+
+
+REASON_WORDS: Mapping[ReplanReason, str] = {
+    ReplanReason.GOALS: "planned for the operations running now",
+    ReplanReason.INTENTIONS: "planned for the intentions",
+    ReplanReason.DEVIATION: "planned again after a deviation",
+    ReplanReason.TIMEOUT: "planned again after a time-out",
+    ReplanReason.AVAILABILITY: "planned again: a resource stopped answering or answers again",
+    ReplanReason.ERROR: "planned around operations in error",
+    ReplanReason.MAINTENANCE: "maintenance planned",
+    ReplanReason.FORBIDDEN_STATE: "recovery from a forbidden state planned",
+    ReplanReason.RESET: "planned to reset an operation",
+    ReplanReason.RESTART: "planned again for restart mode",
+    ReplanReason.ESTIMATED: "planned again after an estimate was set",
+    ReplanReason.RECOVERED: "planned again after recovery",
+    ReplanReason.CLEARED: "planned again: an operation left its error",
+    ReplanReason.REENABLED: "planned again: an effect was re-enabled",
+}
+"""Why the runner planned again (`ReplanReason`), in words for people."""
+
+
+def replan_words(reason: str) -> str:
+    """A planning event's `reason` in words ("planned again" for one this code does not know)."""
+    try:
+        return REASON_WORDS[ReplanReason(reason)]
+    except ValueError:
+        return "planned again"

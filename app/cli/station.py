@@ -23,7 +23,7 @@ from planner.runner.queries import QueryObserver
 
 if TYPE_CHECKING:
     from app.serve import Built
-    from app.station.live import DeviceSetup
+    from app.station.running import DeviceSetup
     from app.station.scenario import Scenario
     from hw.devices import Devices
 
@@ -133,7 +133,6 @@ def _build(
         speed=args.speed,
         secure_cookies=args.secure_cookies,
         devices=devices,
-        simulated=devices is None or args.emulate,  # the simulation panel acts on emulators
         keys=Path(args.keys) if args.keys else None,
         trusted_proxies=tuple(args.trusted_proxy),
         progress=say,

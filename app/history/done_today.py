@@ -10,10 +10,11 @@ from datetime import datetime
 from sqlalchemy import select
 
 from app.history.run_history import run_history
-from app.history.runs import Outcome
+from app.station.runs import Outcome
 from app.store.db import Store
 from app.store.tables import AuditRecord
 from planner.model.station import Station
+from planner.runner import EventKind
 from planner.words import Wording, sentence
 
 # the records of a person's own taps on the task cards (app.station.live, planner.runner.people)
@@ -56,7 +57,7 @@ def done_today(
         .where(
             AuditRecord.station == station,
             AuditRecord.user == user,
-            AuditRecord.kind == "operator",
+            AuditRecord.kind == EventKind.OPERATOR,
             AuditRecord.subject.in_(sorted(_TASKS)),
             AuditRecord.time >= since,
         )

@@ -1,11 +1,12 @@
 """A station's runs read back from its audit log: the engines it built, and what happened in
 each (`app.history.runs`, `app.history.timeline`).
 
-The runner's events are in the log as `app.station.records.event_entry` wrote them, with
-their station time in `detail["station_time"]` and the wall time of their round in the
-record's `time`.  An experiment played from the simulation panel is a record of its own
-(no station time): it takes the time of the record before it.  People's records that
-repeat a runner's event (a card done) carry no station time and are left out.
+The runner's events (and the `run` records that say where runs begin and end) are in the
+log as `app.station.records.event_entry` wrote them, with their station time in
+`detail["station_time"]` and the wall time of their round in the record's `time`.  An
+experiment played from the simulation panel is a record of its own (no station time): it
+takes the time of the record before it.  People's records that repeat a runner's event (a
+card done) carry no station time and are left out.
 """
 
 from __future__ import annotations
@@ -15,8 +16,9 @@ from dataclasses import dataclass
 
 from sqlalchemy import select
 
-from app.history.runs import Happening, Run, find_runs, on_one_clock
+from app.history.runs import Happening, Run, on_one_clock, runs
 from app.history.timeline import KINDS
+from app.store.audit import AuditKind, record_kind
 from app.store.db import Store
 from app.store.tables import AuditRecord
 
@@ -50,19 +52,18 @@ def happenings(store: Store, station: str, limit: int = LIMIT) -> list[Happening
         found: list[Happening] = []
         last = 0.0
         for row in rows:
+            kind = record_kind(row.kind)
             detail = json.loads(row.detail or "{}")
             time = detail.pop("station_time", None)
-            if time is None and row.kind != "experiment":
+            if kind is None or (time is None and kind is not AuditKind.EXPERIMENT):
                 continue
             last = last if time is None else float(time)
             found.append(
-                Happening(
-                    last, row.kind, row.subject, detail, row.user, row.resource, row.id, row.time
-                )
+                Happening(last, kind, row.subject, detail, row.user, row.resource, row.id, row.time)
             )
     return on_one_clock(found)
 
 
 def run_history(store: Store, station: str, limit: int = LIMIT) -> History:
     found = happenings(store, station, limit)
-    return History(tuple(found), tuple(find_runs(found)))
+    return History(tuple(found), tuple(runs(found)))

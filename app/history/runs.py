@@ -1,33 +1,36 @@
-"""Runs of a station's intentions, found in its events: the engines it built, one by one.
+"""Runs of a station read back from its records: the engines it built, one by one.
 
-A *run* starts when an intention starts executing while none is, and ends when none of its
-intentions is executing or in error any more: all finished, or cancelled.  Playing an
-experiment puts the station back to a start, which interrupts a run; `sp run` ends with
-`done` or `stopped`.  An intention started again after an error goes on in the same run.
+What a run is, is said once, where the live station and `sp run` follow them
+(`app.station.runs`): each beginning and end is a `run` record in the log.  Here a run is
+read from its `started` record to its `ended` record, or, while it is still open, to the
+last record.  A log written before runs were recorded has none: its runs are found as
+they were then (`find_runs`, from the intentions' state changes), and a log that has both
+is read the old way up to its first run record.
 
-Pure functions of `Happening`s: the runner's events as the audit log keeps them
-(`app.station.records.event_entry`, read back by `app.history.run_history`) or as `sp run` and the
-scenario player yield them (`from_events`).  Times are station seconds.
+Pure functions of `Happening`s: the records as the audit log keeps them (read back by
+`app.history.run_history`) or the events `sp run` and the scenario player yield
+(`from_events`).  Times are station seconds.
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from enum import StrEnum
 from typing import Any
 
-from planner.runner import Event
+from app.station.runs import Outcome, RunBoundary
+from app.store.audit import AuditKind, RecordKind
+from planner.runner import Event, EventKind, IntentionState
 
 BACKWARDS = 0.5  # station time running back by more than this: the station process restarted
 
 
 @dataclass(frozen=True, slots=True)
 class Happening:
-    """One event on a run's clock."""
+    """One record on a run's clock."""
 
     time: float
-    kind: str
+    kind: RecordKind
     subject: str
     detail: Mapping[str, Any] = field(default_factory=dict)
     user: str = ""
@@ -39,9 +42,7 @@ class Happening:
 def from_events(events: Iterable[Event]) -> list[Happening]:
     """The runner's events, keyed by their position."""
     return [
-        Happening(
-            e.time, e.kind.value, e.subject, dict(e.detail), str(e.detail.get("user", "")), key=k
-        )
+        Happening(e.time, e.kind, e.subject, dict(e.detail), str(e.detail.get("user", "")), key=k)
         for k, e in enumerate(events)
     ]
 
@@ -59,14 +60,6 @@ def on_one_clock(happenings: Sequence[Happening]) -> list[Happening]:
         last = max(last, time)
         out.append(h if time == h.time else replace(h, time=time))
     return out
-
-
-class Outcome(StrEnum):
-    FINISHED = "finished"
-    CANCELLED = "cancelled"
-    INTERRUPTED = "interrupted"  # an experiment put the station back to a start
-    STOPPED = "stopped"  # `sp run` ran out of time
-    RUNNING = "running"
 
 
 @dataclass(frozen=True)
@@ -90,12 +83,61 @@ class Run:
         return None if self.started_at is None else self.started_at + (time - self.start)
 
 
-_ENDS = {"experiment": Outcome.INTERRUPTED, "done": Outcome.FINISHED, "stopped": Outcome.STOPPED}
+def runs(happenings: Sequence[Happening]) -> list[Run]:
+    """The runs in `happenings`, oldest first; the last may still be running."""
+    first = next((k for k, h in enumerate(happenings) if h.kind == EventKind.RUN), None)
+    if first is None:
+        return find_runs(happenings)
+    before = [_ended(r, happenings[first - 1]) for r in find_runs(happenings[:first])]
+    return before + recorded_runs(happenings[first:])
+
+
+def recorded_runs(happenings: Sequence[Happening]) -> list[Run]:
+    """The runs the `run` records in `happenings` say."""
+    found: list[Run] = []
+    start: Happening | None = None
+    for h in happenings:
+        if h.kind != EventKind.RUN:
+            continue
+        if h.subject == RunBoundary.STARTED:
+            if start is not None:  # a beginning without its end: the log was cut there
+                found.append(_run(start, h, Outcome.INTERRUPTED))
+            start = h
+        elif h.subject == RunBoundary.ENDED and start is not None:
+            found.append(_run(start, h, Outcome(str(h.detail.get("outcome", "finished")))))
+            start = None
+    if start is not None:
+        found.append(_run(start, happenings[-1], Outcome.RUNNING))
+    return found
+
+
+def _run(start: Happening, end: Happening, outcome: Outcome) -> Run:
+    names = end.detail.get("intentions") or start.detail.get("intentions") or ()
+    intentions = tuple(str(n) for n in names)
+    return Run(start.key, end.key, start.time, end.time, intentions, outcome, start.wall)
+
+
+def _ended(run: Run, last: Happening) -> Run:
+    """A run of the old log still open where run records begin: it ended there."""
+    if run.outcome is not Outcome.RUNNING:
+        return run
+    return replace(run, last=last.key, end=last.time, outcome=Outcome.INTERRUPTED)
+
+
+_ENDS = {
+    AuditKind.EXPERIMENT: Outcome.INTERRUPTED,
+    EventKind.DONE: Outcome.FINISHED,
+    EventKind.STOPPED: Outcome.STOPPED,
+}
+_BUSY = (IntentionState.EXECUTING, IntentionState.ERROR)
+_IDLE = (IntentionState.FINISHED, IntentionState.INITIAL)
 
 
 def find_runs(happenings: Sequence[Happening]) -> list[Run]:
-    """The runs in `happenings`, oldest first; the last may still be running."""
-    runs: list[Run] = []
+    """The runs of a log written before runs were recorded, oldest first: a run began when
+    an intention went executing or in error while none was, and ended when none of its
+    intentions was any more; a restart after an error was told by its cause's words."""
+    found: list[Run] = []
     active: set[str] = set()  # executing or in error
     names: list[str] = []
     cancelled = False
@@ -104,8 +146,7 @@ def find_runs(happenings: Sequence[Happening]) -> list[Run]:
     def close(at: Happening, outcome: Outcome) -> None:
         nonlocal start, cancelled
         assert start is not None
-        run = Run(start.key, at.key, start.time, at.time, tuple(names), outcome, start.wall)
-        runs.append(run)
+        found.append(Run(start.key, at.key, start.time, at.time, tuple(names), outcome, start.wall))
         start, cancelled = None, False
         active.clear()
         names.clear()
@@ -115,27 +156,28 @@ def find_runs(happenings: Sequence[Happening]) -> list[Run]:
             if start is not None:
                 close(h, _ENDS[h.kind])
             continue
-        if h.kind != "intention":
+        if h.kind != EventKind.INTENTION:
             continue
         before, after = str(h.detail.get("before", "")), str(h.detail.get("after", ""))
-        if after in ("e", "error"):  # in error with no start seen: the log began after it
+        if after in _BUSY:  # in error with no start seen: the log began after it
             start = start or h
             active.add(h.subject)
             names.extend([] if h.subject in names else [h.subject])
-        elif after in ("f", "i") and h.subject in active:
-            if after == "i" and before == "error" and "again" in str(h.detail.get("why")):
-                continue  # started again after an error: the run goes on
+        elif after in _IDLE and h.subject in active:
+            restarted = before == IntentionState.ERROR and "again" in str(h.detail.get("why"))
+            if after == IntentionState.INITIAL and restarted:
+                continue  # started again after an error: the run went on
             active.discard(h.subject)
-            cancelled = cancelled or after == "i"
+            cancelled = cancelled or after == IntentionState.INITIAL
             if not active:
                 close(h, Outcome.CANCELLED if cancelled else Outcome.FINISHED)
     if start is not None:
         last = happenings[-1]
         running = Outcome.RUNNING
-        runs.append(
+        found.append(
             Run(start.key, last.key, start.time, last.time, tuple(names), running, start.wall)
         )
-    return runs
+    return found
 
 
 def within(happenings: Iterable[Happening], run: Run) -> list[Happening]:

@@ -1,6 +1,6 @@
 """The timeline of a run (`app.history.runs`): per resource what ran when, the waits, errors and
-recoveries, the cycle time and the time lost per cause: a Gantt chart's data, drawn by
-`app.history.timeline_drawing`.
+recoveries, the cycle time and the time lost per cause: a Gantt chart's data
+(`app.history.timeline_data`), drawn by `app.history.timeline_drawing`.
 
 A pure function of the run's `Happening`s and the station model (who owns which
 transition).  A resource's *bar* starts when the runner takes one of its controlled
@@ -8,182 +8,62 @@ transitions (an ability starts) and lasts until its last effect before the resou
 start; it ends *failed* at a time-out, an unexpected effect, or when the resource stops
 answering.  Operations and intentions get bars for executing and for being in error.
 
-*Time lost* is counted per cause, each moment once, given to the first of these that holds:
-waiting for a person's maintenance step or approval; a resource that stopped answering, from
-its last sign of life until work goes on with another resource (or it answers again); an
-effect that timed out, from when it was due to start until the next step; an unexpected
-result, from the start of the attempt until the next step; a forbidden state; restart mode;
-an intention in error while the station follows a maintenance plan; an intention in error
-with no plan to mend it (the engineer's to solve).
+*Time lost* is counted per cause, each moment once, given to the first of these that holds
+(`Cause`): waiting for a person's maintenance step or approval; a resource that stopped
+answering, from its last sign of life until work goes on with another resource (or it
+answers again); an effect that timed out, from when it was due to start until the next
+step; an unexpected result, from the start of the attempt until the next step; a forbidden
+state; restart mode; an intention in error while the station follows a maintenance plan; an
+intention in error with no plan to mend it (the engineer's to solve).
 """
 
 from __future__ import annotations
 
 import itertools
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from enum import StrEnum
-from typing import Any
 
-from app.history.runs import Happening, Run, seconds, within
+from app.history.runs import Happening, Run, within
+from app.history.timeline_data import (
+    NOT_ANSWERING,
+    PLANNING_LANE,
+    Bar,
+    BarKind,
+    Cause,
+    Lane,
+    LaneGroup,
+    Loss,
+    Mark,
+    MarkKind,
+    Timeline,
+    pack_operations,
+)
+from app.history.timeline_words import fault_words, plan_words
+from app.store.audit import AuditKind, RecordKind
+from planner.model.flat import TransitionKind
 from planner.model.station import Station
-from planner.reading.display import humanised
+from planner.planning.query import PlanStatus
+from planner.runner import EventKind, IntentionState, ReplanReason
+from planner.runner.vocabulary import RestartMove
 from planner.words import Wording
 
-# the event kinds a timeline reads (and `app.history.runs` needs), for the audit log's query
-# fmt: off
-KINDS = frozenset({
-    "taken", "effect", "unexpected", "timeout", "unavailable", "available", "intention",
-    "operation", "plan", "instruction", "approval", "forbidden", "recovered", "operator",
-    "restart", "fault", "done", "stopped", "experiment",
-})
-# fmt: on
-PLANNING_LANE = "planning"
-NOT_ANSWERING = "not answering"
-# the order in which causes claim a moment (first wins)
-# fmt: off
-PRIORITY = (
-    "person", "outage", "timeout", "unexpected", "forbidden", "restart", "maintenance", "error"
+__all__ = ["KINDS", "Timeline", "losses", "timeline"]
+
+KINDS: frozenset[RecordKind] = frozenset(
+    {
+        *(EventKind.TAKEN, EventKind.EFFECT, EventKind.UNEXPECTED, EventKind.TIMEOUT),
+        *(EventKind.UNAVAILABLE, EventKind.AVAILABLE, EventKind.INTENTION, EventKind.OPERATION),
+        *(EventKind.PLAN, EventKind.INSTRUCTION, EventKind.APPROVAL, EventKind.FORBIDDEN),
+        *(EventKind.RECOVERED, EventKind.OPERATOR, EventKind.RESTART, EventKind.FAULT),
+        *(EventKind.DONE, EventKind.STOPPED, EventKind.RUN, AuditKind.EXPERIMENT),
+    }
 )
-# fmt: on
-ROUTINE = frozenset({"goals", "intentions"})  # replanning that is not a recovery
+"""The record kinds a timeline reads (and `app.history.runs` needs), for the log's query."""
 
-
-# -- words ---------------------------------------------------------------------------------------
-
-REASON_WORDS = {
-    "goals": "planned for the operations running now",
-    "intentions": "planned for the intentions",
-    "deviation": "planned again after a deviation",
-    "timeout": "planned again after a time-out",
-    "availability": "planned again: a resource stopped answering or answers again",
-    "error": "planned around operations in error",
-    "maintenance": "maintenance planned",
-    "forbidden state": "recovery from a forbidden state planned",
-    "reset": "planned to reset an operation",
-    "restart": "planned again for restart mode",
-    "estimated": "planned again after an estimate was set",
-    "recovered": "planned again after recovery",
-    "cleared": "planned again: an operation left its error",
-    "reenabled": "planned again: an effect was re-enabled",
-}
-
-
-def plan_words(detail: Mapping[str, Any]) -> str:
-    """A recovery's planning in words: why, and what came of it (the paper's label, such as
-    "TP w/RTO", stays out: people read this)."""
-    reason = str(detail.get("reason", ""))
-    length = int(detail.get("length", 0) or 0)
-    found = detail.get("status") == "found"
-    result = f"a plan of {length} step{'' if length == 1 else 's'}" if found else "no plan"
-    return f"{REASON_WORDS.get(reason, 'planned again')}: {result}"
-
-
-_SETTING = re.compile(r"(\w+)=([\w.]+)")
-
-
-def fault_words(text: str, words: Wording) -> str:
-    """A fault injected into the simulated world ("kind=disconnect, resource=r2") in words."""
-    parts = dict(_SETTING.findall(text))
-    kind, resource, effect = parts.get("kind", ""), parts.get("resource"), parts.get("effect")
-    if resource and kind in ("disconnect", "reconnect"):
-        verb = "stops answering" if kind == "disconnect" else "answers again"
-        return f"simulated fault: {words.resource(resource)} {verb}"
-    if effect:
-        return f"simulated fault: {words.transition(effect)} ({humanised(kind)})"
-    return f"simulated fault: {humanised(kind) or words.text(text)}"
-
-
-# -- what a timeline holds -----------------------------------------------------------------------
-
-
-class LaneGroup(StrEnum):
-    INTENTIONS = "intentions"
-    OPERATIONS = "operations"
-    RESOURCES = "resources"
-    PLANNING = "planning"
-
-
-class BarKind(StrEnum):
-    WORK = "work"  # a device's ability running
-    PERSON = "person"  # a person's task card
-    EXECUTING = "executing"  # an intention or an operation
-    FAILED = "failed"  # ended by a time-out, an unexpected effect or silence
-    ERROR = "error"  # an intention or an operation in error
-    # what a lane waits for, drawn as a strip under its activity (may overlap it):
-    MAINTENANCE = "maintenance"  # a person's step after an error (also on what it mends)
-    WAITS = "waits"  # a step waiting for a person's approval
-    OUTAGE = "outage"  # the resource does not answer
-
-    @property
-    def activity(self) -> bool:
-        """What the lane does (one at a time), rather than what it waits for."""
-        return self not in (BarKind.MAINTENANCE, BarKind.WAITS, BarKind.OUTAGE)
-
-    @property
-    def abnormal(self) -> bool:
-        """Coloured in the drawing (ISA-101: grey for normal work)."""
-        return self not in (BarKind.WORK, BarKind.PERSON, BarKind.EXECUTING)
-
-
-class MarkKind(StrEnum):
-    ERROR = "error"
-    RECOVERY = "recovery"  # a plan made to recover
-    RESTORED = "restored"  # back to normal: answers again, error cleared, step done
-    FAULT = "fault"  # injected into the simulated world
-
-
-@dataclass(frozen=True)
-class Lane:
-    key: str
-    label: str
-    title: str
-    group: LaneGroup
-
-
-@dataclass(frozen=True)
-class Bar:
-    lane: str
-    start: float
-    end: float
-    label: str
-    title: str
-    kind: BarKind
-
-
-@dataclass(frozen=True)
-class Mark:
-    lane: str
-    time: float
-    kind: MarkKind
-    label: str
-
-
-@dataclass(frozen=True)
-class Loss:
-    cause: str
-    seconds: float
-
-
-@dataclass(frozen=True)
-class Timeline:
-    run: Run
-    lanes: tuple[Lane, ...]
-    bars: tuple[Bar, ...]
-    marks: tuple[Mark, ...]
-    losses: tuple[Loss, ...]  # per cause, the most first
-
-    @property
-    def cycle_time(self) -> float:
-        return self.run.cycle_time
-
-    @property
-    def lost(self) -> float:
-        return sum(loss.seconds for loss in self.losses)
-
-    def lane(self, key: str) -> Lane:
-        return next(lane for lane in self.lanes if lane.key == key)
+UNCONTROLLED = (TransitionKind.AUTOMATIC.value, TransitionKind.EFFECT.value)
+ROUTINE = frozenset(r.value for r in ReplanReason if r.routine)  # replanning, not recovering
+FOUND = PlanStatus.FOUND.value
 
 
 def timeline(
@@ -193,14 +73,6 @@ def timeline(
     `happenings` may hold more than the run (they are cut to it)."""
     found = words if words is not None else Wording(station)
     return _Builder(station, run, found).build(within(happenings, run))
-
-
-def describe_losses(found: Sequence[Loss]) -> str:
-    """ "robot 2 stopped answering 2.2 s, waiting for the operator 2.0 s" ("" if none)."""
-    return ", ".join(f"{loss.cause} {seconds(loss.seconds)}" for loss in found)
-
-
-# -- building it ---------------------------------------------------------------------------------
 
 
 @dataclass
@@ -221,10 +93,10 @@ class _Open:
 
 @dataclass
 class _Waste:
-    """A cause of lost time while it lasts (`end` None: still)."""
+    """Time lost to `cause` while it lasts (`end` None: still), said as `words`."""
 
-    rank: str
-    cause: str
+    cause: Cause
+    words: str
     start: float
     of: str = ""  # what it is about: a resource, a person's step, an intention
     until_next_step: bool = False  # ends at the next step taken anywhere
@@ -247,10 +119,28 @@ class _Builder:
         self.waits: dict[str, _Open] = {}  # a person's step -> the wait for it
         self.mending: dict[tuple[str, str], _Open] = {}  # (step, resource it mends) -> wait
         self.wastes: list[_Waste] = []
+        self.handlers: dict[RecordKind, Callable[[Happening], None]] = {
+            EventKind.TAKEN: self.on_taken,
+            EventKind.EFFECT: self.on_effect,
+            EventKind.TIMEOUT: self.on_timeout,
+            EventKind.UNEXPECTED: self.on_unexpected,
+            EventKind.UNAVAILABLE: self.on_unavailable,
+            EventKind.AVAILABLE: self.on_available,
+            EventKind.FAULT: self.on_fault,
+            EventKind.INSTRUCTION: self.on_instruction,
+            EventKind.APPROVAL: self.on_approval,
+            EventKind.OPERATOR: self.on_operator,
+            EventKind.PLAN: self.on_plan,
+            EventKind.FORBIDDEN: self.on_forbidden,
+            EventKind.RECOVERED: self.on_recovered,
+            EventKind.RESTART: self.on_restart,
+            EventKind.INTENTION: self.on_intention,
+            EventKind.OPERATION: self.on_operation,
+        }
 
     def build(self, happenings: Sequence[Happening]) -> Timeline:
         for h in happenings:
-            handler = getattr(self, "on_" + h.kind, None)
+            handler = self.handlers.get(h.kind)
             if handler is not None:
                 handler(h)
         end = self.run.end
@@ -260,19 +150,20 @@ class _Builder:
             self.bars.append(Bar(resource, since, end, "", NOT_ANSWERING, BarKind.OUTAGE))
         waiting = [*self.states.values(), *self.waits.values(), *self.mending.values()]
         self.bars += [s.until(end) for s in waiting]
-        lanes = [*self.state_lanes(), *self.operation_lanes(), *self.resource_lanes()]
-        bars = tuple(b for b in self.bars if b.end >= b.start)
+        packed, marks, operations = pack_operations(self.bars, self.marks)
+        lanes = [*self.state_lanes(), *operations, *self.resource_lanes()]
+        bars = tuple(b for b in packed if b.end >= b.start)
         found = losses(self.wastes, self.run.start, end)
-        return Timeline(self.run, tuple(lanes), bars, tuple(self.marks), tuple(found))
+        return Timeline(self.run, tuple(lanes), bars, tuple(marks), tuple(found))
 
-    def mark(self, lane: str, time: float, kind: MarkKind, label: str) -> None:
-        self.marks.append(Mark(lane, time, kind, label))
-
-    # -- resources -----------------------------------------------------------------------------
+    def mark(
+        self, lane: str, time: float, kind: MarkKind, label: str, forbidden: bool = False
+    ) -> None:
+        self.marks.append(Mark(lane, time, kind, label, forbidden))
 
     def on_taken(self, h: Happening) -> None:
         resource = self.owner.get(h.subject)
-        controlled = h.detail.get("type") not in ("automatic", "effect")
+        controlled = h.detail.get("type") not in UNCONTROLLED
         if controlled:
             self.next_step(h.time, resource or "")
         ability = self.starts.get(h.subject)
@@ -308,7 +199,7 @@ class _Builder:
         self.close(resource, h.time, f"{what} timed out")
         self.mark(resource, h.time, MarkKind.ERROR, f"{what} timed out")
         cause = f"{self.words.resource(resource)}: {what} timed out"
-        self.wastes.append(_Waste("timeout", cause, h.time - waited, until_next_step=True))
+        self.wastes.append(_Waste(Cause.TIMEOUT, cause, h.time - waited, until_next_step=True))
 
     def on_unexpected(self, h: Happening) -> None:
         resource = self.owner.get(h.subject, h.resource)
@@ -320,7 +211,7 @@ class _Builder:
         self.mark(resource, h.time, MarkKind.ERROR, f"another result than planned: {what}")
         cause = f"{self.words.resource(resource)}: another result than planned"
         start = attempt.start if attempt is not None else h.time
-        self.wastes.append(_Waste("unexpected", cause, start, until_next_step=True))
+        self.wastes.append(_Waste(Cause.UNEXPECTED, cause, start, until_next_step=True))
 
     def on_unavailable(self, h: Happening) -> None:
         resource = h.subject
@@ -329,7 +220,7 @@ class _Builder:
         self.silent.setdefault(resource, since)
         cause = f"{self.words.resource(resource)} stopped answering"
         self.mark(resource, h.time, MarkKind.ERROR, cause)
-        self.wastes.append(_Waste("outage", cause, since, of=resource))
+        self.wastes.append(_Waste(Cause.OUTAGE, cause, since, of=resource))
 
     def on_available(self, h: Happening) -> None:
         resource = h.subject
@@ -337,7 +228,7 @@ class _Builder:
         self.bars.append(Bar(resource, since, h.time, "", NOT_ANSWERING, BarKind.OUTAGE))
         again = f"{self.words.resource(resource)} answers again"
         self.mark(resource, h.time, MarkKind.RESTORED, again)
-        self.end_wastes("outage", h.time, of=resource)
+        self.end_wastes(Cause.OUTAGE, h.time, of=resource)
 
     def on_fault(self, h: Happening) -> None:
         text = str(h.detail.get("fault", h.subject))
@@ -352,10 +243,8 @@ class _Builder:
             if waste.end is not None or time <= waste.start:
                 continue
             elsewhere = waste.of != resource and resource not in self.silent
-            if waste.until_next_step or (waste.rank == "outage" and elsewhere):
+            if waste.until_next_step or (waste.cause is Cause.OUTAGE and elsewhere):
                 waste.end = time
-
-    # -- people --------------------------------------------------------------------------------
 
     def on_instruction(self, h: Happening) -> None:
         person = self.owner.get(h.subject, h.resource or PLANNING_LANE)
@@ -378,7 +267,7 @@ class _Builder:
             self.waits[h.subject] = _Open(lane, h.time, what, what, kind)
             person = self.words.resource(lane) if lane in self.people else "a person"
             cause = f"waiting for {person}"
-            self.wastes.append(_Waste("person", cause, h.time, of=h.subject))
+            self.wastes.append(_Waste(Cause.PERSON, cause, h.time, of=h.subject))
 
     def on_operator(self, h: Happening) -> None:
         step = str(h.detail.get("transition", ""))
@@ -387,14 +276,12 @@ class _Builder:
             self.bars.append(wait.until(h.time))
             done = f"{wait.label}: done by {h.user or 'someone'}"
             self.mark(wait.lane, h.time, MarkKind.RESTORED, done)
-            self.end_wastes("person", h.time, of=step)
+            self.end_wastes(Cause.PERSON, h.time, of=step)
         for key in [k for k in self.mending if k[0] == step]:
             self.bars.append(self.mending.pop(key).until(h.time))
 
-    # -- the station as a whole ----------------------------------------------------------------
-
     def on_plan(self, h: Happening) -> None:
-        reason, found = str(h.detail.get("reason", "")), h.detail.get("status") == "found"
+        reason, found = str(h.detail.get("reason", "")), h.detail.get("status") == FOUND
         if reason in ROUTINE:
             return
         self.mark(
@@ -403,35 +290,35 @@ class _Builder:
             MarkKind.RECOVERY if found else MarkKind.ERROR,
             plan_words(h.detail),
         )
-        open_errors = [w for w in self.wastes if w.rank == "error" and w.end is None]
-        if reason == "maintenance" and found and open_errors:  # the station mends it itself
-            self.end_wastes("error", h.time)
+        open_errors = [w for w in self.wastes if w.cause is Cause.ERROR and w.end is None]
+        if (
+            reason == ReplanReason.MAINTENANCE and found and open_errors
+        ):  # the station mends it itself
+            self.end_wastes(Cause.ERROR, h.time)
             for waste in open_errors:
                 cause = "in error, following a maintenance plan"
-                self.wastes.append(_Waste("maintenance", cause, h.time, of=waste.of))
+                self.wastes.append(_Waste(Cause.MAINTENANCE, cause, h.time, of=waste.of))
 
     def on_forbidden(self, h: Happening) -> None:
         broken = [str(n) for n in h.detail.get("violated") or ()] or [h.subject]
         what = ", ".join(self.words.specification(n) for n in broken)
-        self.mark(PLANNING_LANE, h.time, MarkKind.ERROR, f"forbidden state: {what}")
-        self.wastes.append(_Waste("forbidden", "forbidden state, recovering", h.time))
+        self.mark(PLANNING_LANE, h.time, MarkKind.ERROR, f"forbidden state: {what}", True)
+        self.wastes.append(_Waste(Cause.FORBIDDEN, "forbidden state, recovering", h.time))
 
     def on_recovered(self, h: Happening) -> None:
         self.mark(PLANNING_LANE, h.time, MarkKind.RESTORED, "every specification holds again")
-        self.end_wastes("forbidden", h.time)
+        self.end_wastes(Cause.FORBIDDEN, h.time)
 
     def on_restart(self, h: Happening) -> None:
-        if h.subject == "entered":
-            self.wastes.append(_Waste("restart", "in restart mode", h.time))
+        if h.subject == RestartMove.ENTERED:
+            self.wastes.append(_Waste(Cause.RESTART, "in restart mode", h.time))
         else:
-            self.end_wastes("restart", h.time)
+            self.end_wastes(Cause.RESTART, h.time)
 
-    def end_wastes(self, rank: str, time: float, of: str = "") -> None:
+    def end_wastes(self, cause: Cause, time: float, of: str = "") -> None:
         for waste in self.wastes:
-            if waste.rank == rank and waste.end is None and (not of or waste.of == of):
+            if waste.cause is cause and waste.end is None and (not of or waste.of == of):
                 waste.end = time
-
-    # -- intentions and operations -------------------------------------------------------------
 
     def on_intention(self, h: Happening) -> None:
         self.state_change(LaneGroup.INTENTIONS, h)
@@ -451,27 +338,25 @@ class _Builder:
             self.bars.append(current.until(h.time))
         was_error = current is not None and current.kind is BarKind.ERROR
         label = self.label(group, name)
-        if after == "e":
+        if after == IntentionState.EXECUTING:
             self.states[lane] = _Open(
                 lane, h.time, label, self.label(group, name), BarKind.EXECUTING
             )
-        elif after == "error":
+        elif after == IntentionState.ERROR:
             self.states[lane] = _Open(lane, h.time, label, f"in error: {why}", BarKind.ERROR)
             self.mark(lane, h.time, MarkKind.ERROR, f"{label} in error: {why}")
             if group is LaneGroup.INTENTIONS:
                 cause = "in error, waiting for the engineer"
-                self.wastes.append(_Waste("error", cause, h.time, of=name))
-        if was_error and after != "error":
+                self.wastes.append(_Waste(Cause.ERROR, cause, h.time, of=name))
+        if was_error and after != IntentionState.ERROR:
             self.mark(lane, h.time, MarkKind.RESTORED, f"{label}: {why}")
-            self.end_wastes("error", h.time, of=name)
-            self.end_wastes("maintenance", h.time, of=name)
+            self.end_wastes(Cause.ERROR, h.time, of=name)
+            self.end_wastes(Cause.MAINTENANCE, h.time, of=name)
 
     def label(self, group: LaneGroup, name: str) -> str:
         if group is LaneGroup.OPERATIONS:
             return self.words.operation(name)
         return self.words.intention(name)
-
-    # -- the lanes -----------------------------------------------------------------------------
 
     def state_lanes(self) -> list[Lane]:
         group = LaneGroup.INTENTIONS
@@ -488,56 +373,14 @@ class _Builder:
         title = "planning to recover, and back to normal"
         return [*lanes, Lane(PLANNING_LANE, "recovery", title, LaneGroup.PLANNING)]
 
-    def operation_lanes(self) -> list[Lane]:
-        """Operations packed into as few lanes as ran at once; their bars and marks move to
-        them (an episode: from a start until the operation is idle again)."""
-        prefix = f"{LaneGroup.OPERATIONS}:"
-        mine = sorted((b for b in self.bars if b.lane.startswith(prefix)), key=lambda b: b.start)
-        episodes: list[list[Bar]] = []
-        for bar in mine:
-            same = [e for e in episodes if e[-1].lane == bar.lane and e[-1].end == bar.start]
-            if same:
-                same[-1].append(bar)
-            else:
-                episodes.append([bar])
-        ends: list[float] = []
-        self.bars = [b for b in self.bars if not b.lane.startswith(prefix)]
-        moved: list[tuple[str, float, float, str]] = []
-        for episode in episodes:
-            start, end = episode[0].start, episode[-1].end
-            free = [j for j, e in enumerate(ends) if e <= start]
-            j = free[0] if free else len(ends)
-            ends[j : j + 1] = [end]
-            key = f"{LaneGroup.OPERATIONS}#{j}"
-            self.bars += [Bar(key, b.start, b.end, b.label, b.title, b.kind) for b in episode]
-            moved.append((episode[0].lane, start, end, key))
-        self.marks = [_moved(m, moved, prefix) for m in self.marks]
-        return [
-            Lane(
-                f"{LaneGroup.OPERATIONS}#{j}",
-                "operations" if j == 0 else "",
-                "",
-                LaneGroup.OPERATIONS,
-            )
-            for j in range(max(1, len(ends)))
-        ]
-
-
-def _moved(mark: Mark, moved: Sequence[tuple[str, float, float, str]], prefix: str) -> Mark:
-    if not mark.lane.startswith(prefix):
-        return mark
-    keys = [
-        key for lane, start, end, key in moved if lane == mark.lane and start <= mark.time <= end
-    ]
-    return Mark(keys[0] if keys else f"{LaneGroup.OPERATIONS}#0", mark.time, mark.kind, mark.label)
-
 
 def losses(wastes: Sequence[_Waste], start: float, end: float) -> list[Loss]:
-    """Each moment of the run given to the first cause (by `PRIORITY`) that holds then."""
+    """Each moment of the run given to the first cause (in `Cause`'s order) that holds then."""
+    order = list(Cause)
     spans = [
         (
-            PRIORITY.index(w.rank),
-            w.cause,
+            order.index(w.cause),
+            w.words,
             max(start, w.start),
             min(end, end if w.end is None else w.end),
         )

@@ -21,7 +21,7 @@ from html import escape
 from markupsafe import Markup
 
 from app.history.runs import Run, seconds
-from app.history.timeline import Bar, BarKind, LaneGroup, Mark, MarkKind, Timeline
+from app.history.timeline_data import Bar, BarKind, LaneGroup, Mark, MarkKind, Timeline
 
 WIDTH = 1200  # viewBox units across
 LABELS = 200  # the row labels' column
@@ -215,7 +215,7 @@ _MARK_SHAPES = {
 def _mark(mark: Mark, row: int, scale: _Scale, run: Run) -> str:
     x, top = scale.x(mark.time), AXIS + row * ROW + 3
     path = _MARK_SHAPES[mark.kind].format(x=f"{x:.1f}", top=top)
-    forbidden = " tl-mark-forbidden" if mark.label.startswith("forbidden state") else ""
+    forbidden = " tl-mark-forbidden" if mark.forbidden else ""
     tip = f"{mark.label} ({time_of_day(run, mark.time)})"
     return (
         f'<g class="tl-mark tl-mark-{mark.kind}{forbidden}" data-kind="{mark.kind}" '

@@ -74,68 +74,98 @@ def conditions(
     """The alarm conditions of a runner state, in people's words (`words`, the active
     model's `planner.words.Wording`; built from the runner's station when not given): an
     operator reads them, so no model identifier appears (the key keeps the name)."""
-    words = words or Wording(runner.station)
-    out: dict[str, Condition] = {}
+    said = words or Wording(runner.station)
+    found = [
+        *_halted(state, said),
+        *_forbidden(runner, state, said),
+        *_not_answering(runner, state, said),
+        *_intentions_in_error(runner, state, said),
+        *_operations_in_error(runner, state, said),
+        *_timed_out(runner, state, said),
+    ]
+    return {condition.key: condition for condition in found}
 
-    def add(key: str, priority: Priority, message: str, resource: str = "") -> None:
-        out[key] = Condition(key, priority, message, resource)
 
-    if state.halted:
-        add(
-            "halted",
-            Priority.CRITICAL,
-            f"automatic steps are halted ({words.text(state.halted)}); "
-            "the station model needs an engineer's fix",
-        )
+def _halted(state: RunnerState, words: Wording) -> list[Condition]:
+    if not state.halted:
+        return []
+    what = f"automatic steps are halted ({words.text(state.halted)})"
+    return [
+        Condition("halted", Priority.CRITICAL, f"{what}; the station model needs an engineer's fix")
+    ]
+
+
+def _forbidden(runner: Runner, state: RunnerState, words: Wording) -> list[Condition]:
     violated = runner.semantics.violated(runner.index.as_state(state.values))
-    if violated or state.recovery is not None:
-        broken = violated or sorted(state.relaxed)
-        rules = "; ".join(words.specification(s) for s in broken) or "a rule of the station"
-        if state.recovery is None:
-            what = "no recovery plan was found; the station needs a person"
-        elif violated:
-            what = "recovery in progress: approve its steps"
-        else:
-            what = "the rules hold again; approve the rest of the recovery"
-        add("forbidden", Priority.CRITICAL, f"forbidden state, broken: {rules}; {what}")
+    if not violated and state.recovery is None:
+        return []
+    broken = violated or sorted(state.relaxed)
+    rules = "; ".join(words.specification(s) for s in broken) or "a rule of the station"
+    if state.recovery is None:
+        what = "no recovery plan was found; the station needs a person"
+    elif violated:
+        what = "recovery in progress: approve its steps"
+    else:
+        what = "the rules hold again; approve the rest of the recovery"
+    message = f"forbidden state, broken: {rules}; {what}"
+    return [Condition("forbidden", Priority.CRITICAL, message)]
+
+
+def _not_answering(runner: Runner, state: RunnerState, words: Wording) -> list[Condition]:
     resources = {r.name: r for r in runner.station.resources}
+    found = []
     for name in sorted(state.unavailable):
         about = words.text(resources[name].description) if name in resources else ""
-        add(
-            f"resource:{name}",
-            Priority.HIGH,
+        message = (
             f"{words.resource(name)} is not answering (no heartbeat)"
             + (f": {about}" if about else "")
-            + "; its steps are disabled until it answers",
-            name,
+            + "; its steps are disabled until it answers"
         )
-    # where nobody is asked to help, the engineer is: say why and what to do
+        found.append(Condition(f"resource:{name}", Priority.HIGH, message, name))
+    return found
+
+
+def _intentions_in_error(runner: Runner, state: RunnerState, words: Wording) -> list[Condition]:
+    """Where nobody is asked to help, the engineer is: said why and what to do."""
     engineer = {w.subject: w.what for w in waiting_for(runner, state) if w.who is Who.ENGINEER}
+    found = []
     for name in sorted(state.intentions_in(IntentionState.ERROR)):
         what = "in error, no plan of operations reaches its goal"
         waiting = "; maintenance steps wait on the task cards" if state.maintenance else ""
         if name in engineer:
             waiting = f"; {words.text(engineer[name])}"
-        add(f"intention:{name}", Priority.HIGH, f"{words.intention(name)}: {what}{waiting}")
-    # an operation in error matters while production needs the station: once no intention is
-    # executing it waits, harmless, until the background check releases it
-    if state.busy_intentions():
-        for name in sorted(state.operations_in(OperationState.ERROR)):
-            add(
-                f"operation:{name}",
-                Priority.MEDIUM,
-                _operation_message(runner, state, words, name),
-                _operation_resource(runner, name),
-            )
-    for name in sorted(state.timed_out):
-        what = "it did not happen in time; planning leaves it out until it is re-enabled"
-        add(
+        message = f"{words.intention(name)}: {what}{waiting}"
+        found.append(Condition(f"intention:{name}", Priority.HIGH, message))
+    return found
+
+
+def _operations_in_error(runner: Runner, state: RunnerState, words: Wording) -> list[Condition]:
+    """An operation in error matters while production needs the station: once no intention
+    is executing it waits, harmless, until the background check releases it."""
+    if not state.busy_intentions():
+        return []
+    return [
+        Condition(
+            f"operation:{name}",
+            Priority.MEDIUM,
+            _operation_message(runner, state, words, name),
+            _operation_resource(runner, name),
+        )
+        for name in sorted(state.operations_in(OperationState.ERROR))
+    ]
+
+
+def _timed_out(runner: Runner, state: RunnerState, words: Wording) -> list[Condition]:
+    what = "it did not happen in time; planning leaves it out until it is re-enabled"
+    return [
+        Condition(
             f"effect:{name}",
             Priority.LOW,
             f"{words.step(name)}: {what}",
             runner.index.owner.get(name, ""),
         )
-    return out
+        for name in sorted(state.timed_out)
+    ]
 
 
 def _operation_message(runner: Runner, state: RunnerState, words: Wording, name: str) -> str:

@@ -1,16 +1,29 @@
-"""The experiments E1-E9 of seed 000 Table 1, as the simulation panel offers them."""
+"""The experiments E1-E9 of seed 000 Table 1, as the simulation panel offers and plays them.
+
+Playing one puts the station back to the scenario's start: a runner with the scenario's
+settings (its intentions started by the engineer who played it, not by themselves), the
+devices back to the start values with the scenario's delays (a simulated world) or put back
+by their emulators, the scenario's faults armed on the station's clock.  An open run is
+interrupted, and the intentions start in the next round, once the devices have reported
+from their new start.
+"""
 
 from __future__ import annotations
 
 import logging
+from dataclasses import replace
 from pathlib import Path
 
+from app.station.cycle import StationCycle
+from app.station.rounds import Round
+from app.station.running import Running, delays_of
 from app.station.scenario import Scenario, ScenarioError, load_scenario
+from app.store.audit import AuditEntry, AuditKind
 from planner.model.station import Station
+from planner.runner import StartIntention
 
 log = logging.getLogger(__name__)
 SCENARIOS = Path(__file__).resolve().parents[2] / "models" / "scenarios"
-
 
 TITLES = {
     "e1_bolt_undone": "E1: a tightened bolt pair is undone by hand",
@@ -36,3 +49,20 @@ def experiments(station: Station) -> dict[str, tuple[str, Scenario]]:
             continue
         found[path.stem] = (TITLES.get(path.stem, path.stem), scenario)
     return found
+
+
+def play(running: Running, round_: Round, scenario: Scenario, title: str, user: str) -> None:
+    """Put the station back to `scenario`'s start in this round (module docstring)."""
+    now = round_.now
+    runner = running.runner_with(replace(scenario.config, auto_intentions=frozenset()))
+    state = runner.initial(now, scenario.start)
+    running.devices.restart(state.values, delays_of(scenario))
+    faults = [replace(f, at=None if f.at is None else now + f.at) for f in scenario.faults]
+    running.cycle = StationCycle(runner, running.devices, state, faults)
+    running.experiment = title
+    why = f"{user} played the experiment {title}"
+    round_.reset = why
+    round_.record(AuditEntry(AuditKind.EXPERIMENT, title, user, "", {"file": scenario.file}))
+    round_.events += running.runs.interrupt(now, why)
+    starts = [StartIntention(user=user, name=name) for name in scenario.intentions or ()]
+    running.next_actions += starts

@@ -13,6 +13,7 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 from app.station.cycle import StationCycle, due
+from app.station.runs import RunTracker
 from app.station.scenario import Scenario
 from hw.devices import Devices
 from hw.simulated import SimulatedWorld
@@ -32,6 +33,7 @@ from planner.runner import (
 from planner.runner.answers import Delayed
 from planner.runner.queries import QueryObserver
 from planner.runner.waiting import waiting_for
+from planner.words import Wording
 
 
 @dataclass
@@ -60,8 +62,47 @@ def play(
     (emulated devices, `app.station.emulated`) it runs in real time on `clock`: a round
     every `step` seconds, the scenario's times counted from the first round.  `watch` sees
     the runner's state after every tick (for tests and monitors); `observer` sees every
-    planning query (for benchmarks).
+    planning query (for benchmarks).  The play is done when the run of the scenario's
+    intentions ended with every one of them finished (`app.station.runs`), and stops at the
+    scenario's time limit otherwise, saying what the station waits for.
     """
+    rounds = _Rounds(step, speed, sleep, clock)
+    cycle = _cycle(station, scenario, planners, rounds, stopwatch, observer, devices)
+    runs = RunTracker(Wording(station))
+    people = _People(scenario)
+    while (now := rounds.now()) <= scenario.until:
+        actions = people.due(now, cycle)
+        result = cycle.step(now, actions)
+        if watch is not None:
+            watch(cycle.state)
+        for event in runs.around(now, cycle.state, result.events, actions):
+            people.answer(event, now)
+            yield event
+        if not runs.open and _all_finished(cycle.state, scenario):
+            yield Event(now, EventKind.DONE, "all intentions finished")
+            return
+        rounds.next()
+    yield from runs.stop(rounds.now(), "time limit")
+    waiting = [w.as_json() for w in waiting_for(cycle.runner, cycle.state)]
+    yield Event(
+        rounds.now(),
+        EventKind.STOPPED,
+        "time limit",
+        {"until": scenario.until, "waiting_for": waiting},
+    )
+
+
+def _cycle(
+    station: Station,
+    scenario: Scenario,
+    planners: Planners,
+    rounds: _Rounds,
+    stopwatch: Callable[[], float] | None,
+    observer: QueryObserver | None,
+    devices: Devices | None,
+) -> StationCycle:
+    """The scenario's runner on its devices (by default its simulated world), at its start
+    and with its faults armed; its planning made slow as the scenario says."""
     runner = Runner(
         station, planners.transition, planners.operation, scenario.config, stopwatch, observer
     )
@@ -72,38 +113,34 @@ def play(
             default_delay=scenario.default_delay,
             start=scenario.start,
         )
-    rounds = _Rounds(step, speed, sleep, clock)
     if scenario.planning_delay > 0:
         budget = scenario.planning_budget
         runner.planning = Delayed(runner.planning, scenario.planning_delay, budget, rounds.now)
-    cycle = StationCycle(
-        runner, devices, runner.initial(0.0, scenario.start), list(scenario.faults)
-    )
-    scheduled = list(scenario.actions)
-    answers: list[tuple[float, Action]] = []  # people's actions, when due
-    while (now := rounds.now()) <= scenario.until:
-        for planned in [a for a in scheduled if due(a, now, runner, cycle.state.values)]:
-            scheduled.remove(planned)
-            answers.append((now, planned.action))
-        actions = tuple(a for t, a in answers if t <= now)
-        answers = [(t, a) for t, a in answers if t > now]
-        result = cycle.step(now, actions)
-        if watch is not None:
-            watch(cycle.state)
-        for event in result.events:
-            answers.extend(_operator_answers(event, scenario, now))
-            yield event
-        if _finished(cycle.state, scenario):
-            yield Event(now, EventKind.DONE, "all intentions finished")
-            return
-        rounds.next()
-    waiting = [w.as_json() for w in waiting_for(runner, cycle.state)]
-    yield Event(
-        rounds.now(),
-        EventKind.STOPPED,
-        "time limit",
-        {"until": scenario.until, "waiting_for": waiting},
-    )
+    start = runner.initial(0.0, scenario.start)
+    return StationCycle(runner, devices, start, list(scenario.faults))
+
+
+class _People:
+    """The scenario's people: the actions planned at a time or on a condition, and the
+    simulated operator's answers to approvals and maintenance steps, each when it is due."""
+
+    def __init__(self, scenario: Scenario) -> None:
+        self.scenario = scenario
+        self.scheduled = list(scenario.actions)
+        self.answers: list[tuple[float, Action]] = []
+
+    def due(self, now: float, cycle: StationCycle) -> tuple[Action, ...]:
+        """The actions due now, in their order."""
+        values = cycle.state.values
+        for planned in [a for a in self.scheduled if due(a, now, cycle.runner, values)]:
+            self.scheduled.remove(planned)
+            self.answers.append((now, planned.action))
+        actions = tuple(a for t, a in self.answers if t <= now)
+        self.answers = [(t, a) for t, a in self.answers if t > now]
+        return actions
+
+    def answer(self, event: Event, now: float) -> None:
+        self.answers.extend(_operator_answers(event, self.scenario, now))
 
 
 class _Rounds:
@@ -150,6 +187,6 @@ def _operator_answers(event: Event, scenario: Scenario, now: float) -> list[tupl
     return []
 
 
-def _finished(state: RunnerState, scenario: Scenario) -> bool:
+def _all_finished(state: RunnerState, scenario: Scenario) -> bool:
     names = scenario.intentions if scenario.intentions is not None else tuple(state.intentions)
     return bool(names) and all(state.intentions[n] == IntentionState.FINISHED for n in names)

@@ -61,6 +61,7 @@ def commit(
         if record is None:
             record = StationRecord(name=station, active_version_id=version_id)
             session.add(record)
+        record.active_version_id = version_id  # a version activated this round, or as before
         record.snapshot = round_.snapshot
         record.world = round_.world
         record.updated_at = wall
@@ -78,13 +79,6 @@ def commit(
     audit.write(store, station, round_.entries, wall, also=save)
 
 
-def set_active_version(store: Store, station: str, version_id: int) -> None:
-    with store.sessions.begin() as session:
-        record = session.get(StationRecord, station)
-        if record is not None:
-            record.active_version_id = version_id
-
-
 @dataclass(frozen=True)
 class RoundRecord:
     """What one round writes: audit entries, the snapshot and devices' state as JSON text."""
@@ -95,7 +89,7 @@ class RoundRecord:
     alarms_changed: bool
 
 
-def compared(snapshot: dict[str, Any]) -> str:
+def without_clock(snapshot: dict[str, Any]) -> str:
     """The snapshot without its clock fields: equal text means nothing worth saving changed."""
     data = {k: v for k, v in snapshot.items() if k not in CLOCK_FIELDS}
     return json.dumps(data, sort_keys=True)

@@ -20,7 +20,6 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Depends, Form, HTTPException, Query, Request
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
 
-from app.history import timeline
 from app.pages import plans as plan_view
 from app.pages.cards import task_cards
 from app.people.auth import Permission, allowed
@@ -51,7 +50,7 @@ from planner.runner import (
     SetEstimated,
     StartIntention,
 )
-from planner.words import Wording, sentence
+from planner.words import Wording, replan_words, sentence
 
 router = APIRouter(include_in_schema=False)
 
@@ -227,7 +226,7 @@ def planning_row(view: StationView, event: Event) -> dict[str, Any]:
     return {
         "planner": PLANNERS.get(str(detail.get("level", "")), "planner")
         + (f" for {words.operation(operation)}" if operation else ""),
-        "why": timeline.REASON_WORDS.get(str(detail.get("reason", "")), "planned again"),
+        "why": replan_words(str(detail.get("reason", ""))),
         "result": result if found else f"no plan ({words.text(str(detail.get('status', '')))})",
         "found": found,
         "at": datetime.fromtimestamp(wall).astimezone().strftime("%H:%M:%S"),

@@ -22,10 +22,11 @@ from fastapi.responses import Response
 
 from app.history import timeline_drawing
 from app.history.run_history import History, run_history
-from app.history.runs import Outcome, Run, seconds
+from app.history.runs import Run, seconds
 from app.history.timeline import Timeline, timeline
 from app.pages import plans as plan_view
 from app.people.auth import Permission
+from app.station.runs import Outcome
 from app.station.view import StationView
 from app.web.deps import Caller, page_context, require, server
 from app.web.engineer import live_fragment, render

@@ -22,14 +22,20 @@ from planner.runner.following import follow, plan_reaches, startable, take
 from planner.runner.queries import announce, ask, recovery_flags, transition_query, unchanged
 from planner.runner.retries import forget_failures
 from planner.runner.tick import Tick
-from planner.runner.vocabulary import EventKind, OperationState, PlanLevel, ReplanReason
+from planner.runner.vocabulary import (
+    EventKind,
+    OperationState,
+    PlanLevel,
+    ReplanReason,
+    RestartMove,
+)
 
 
 def enter(tick: Tick, action: EnterRestart) -> Reply:
     state = tick.state
     state.restart_mode = True
     state.restart_reason, state.restart_user = action.reason, action.user
-    tick.emit(EventKind.RESTART, "entered", user=action.user, reason=action.reason)
+    tick.emit(EventKind.RESTART, RestartMove.ENTERED, user=action.user, reason=action.reason)
     tick.replan_transitions(ReplanReason.RESTART)
     return Reply.accept(action)
 
@@ -41,7 +47,7 @@ def leave(tick: Tick, action: Action) -> Reply:
     for name in sorted(state.resetting):
         tick.emit(EventKind.RESET, name, done=False, why="restart mode left before it")
     state.resetting.clear()
-    tick.emit(EventKind.RESTART, "left", user=action.user)
+    tick.emit(EventKind.RESTART, RestartMove.LEFT, user=action.user)
     tick.replan_operations(ReplanReason.RESTART)
     tick.replan_transitions(ReplanReason.RESTART)
     return Reply.accept(action)

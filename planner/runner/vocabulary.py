@@ -108,6 +108,13 @@ class ReplanReason(StrEnum):
         return self in (ReplanReason.GOALS, ReplanReason.INTENTIONS)
 
 
+class RestartMove(StrEnum):
+    """The subject of a `restart` event: restart mode entered or left (seed 001 VIII-A)."""
+
+    ENTERED = "entered"
+    LEFT = "left"
+
+
 class EventKind(StrEnum):
     """What an event is about; its subject and details depend on the kind."""
 

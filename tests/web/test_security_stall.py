@@ -16,6 +16,7 @@ import pytest
 from sqlalchemy import event
 
 from app.station.live import StationError
+from app.station.requests import Acknowledge
 from tests.support.stations import RunningStation, form_token
 from tests.web.test_security_throttle import audited
 
@@ -97,14 +98,11 @@ def test_a_request_that_fails_inside_the_loop_is_answered_at_once(
     """A fault of ours in one request (not a refusal) answers that person with an error
     in the same round, instead of a 503 after 30 s, and the loop goes on."""
     live = station.live
-    real = live._handle
 
-    def failing(request: Any, now: float, entries: list[Any]) -> Any:
-        if request.kind == "acknowledge":
-            raise ValueError("a bug")
-        return real(request, now, entries)
+    def failing(request: Acknowledge, running: Any, round_: Any) -> Any:
+        raise ValueError("a bug")
 
-    monkeypatch.setattr(live, "_handle", failing)
+    monkeypatch.setattr(Acknowledge, "apply", failing)
     began = time.monotonic()
     with pytest.raises(StationError, match="could not do that: a bug"):
         live.acknowledge("resource:r1", "operator", "").result(10)

@@ -9,7 +9,8 @@ from typing import Any
 from hypothesis import given
 from hypothesis import strategies as st
 
-from app.history.runs import Happening, Outcome, find_runs, on_one_clock, seconds, within
+from app.history.runs import Happening, find_runs, on_one_clock, runs, seconds, within
+from app.station.runs import Outcome
 
 
 def intention(time: float, name: str, before: str, after: str, why: str = "") -> dict[str, Any]:
@@ -114,3 +115,45 @@ def test_runs_are_in_order_and_never_overlap(found: list[Happening]) -> None:
     for earlier, later in itertools.pairwise(runs):
         assert earlier.last < later.first and earlier.end <= later.start
         assert earlier.outcome is not Outcome.RUNNING
+
+
+def run_record(time: float, boundary: str, intentions: list[str], **more: str) -> dict[str, Any]:
+    detail: dict[str, Any] = {"why": "", "intentions": intentions, **more}
+    return {"time": time, "kind": "run", "subject": boundary, "detail": detail}
+
+
+def test_recorded_runs_are_read_from_their_records_not_guessed_from_words() -> None:
+    """A restart after an error whose cause is worded otherwise ("begun anew") is one run:
+    the records say so, where the old heuristic looked for "again" in the words."""
+    found = keyed(
+        run_record(1.0, "started", ["a"]),
+        intention(1.0, "a", "i", "e"),
+        intention(2.0, "a", "e", "error", "no plan"),
+        intention(3.0, "a", "error", "i", "begun anew by ada"),
+        intention(3.0, "a", "i", "e"),
+        intention(6.0, "a", "e", "f"),
+        run_record(6.0, "ended", ["a"], outcome="finished"),
+        run_record(7.0, "started", ["b"]),
+        intention(7.0, "b", "i", "e"),
+    )
+    assert len(find_runs(found)) == 3  # the old way cuts the restart in two
+    first, second = runs(found)
+    assert (first.first, first.last, first.start, first.end) == (1, 7, 1.0, 6.0)
+    assert (first.intentions, first.outcome) == (("a",), Outcome.FINISHED)
+    assert [h.key for h in within(found, first)][1] == 2  # the intention's start is in it
+    assert (second.outcome, second.start) == (Outcome.RUNNING, 7.0)
+
+
+def test_a_log_from_before_run_records_is_read_the_old_way_up_to_the_first_record() -> None:
+    found = keyed(
+        intention(1.0, "a", "i", "e"),
+        intention(2.0, "a", "e", "f"),
+        intention(3.0, "b", "i", "e"),  # running when the station was upgraded
+        run_record(4.0, "started", ["a"]),
+        intention(4.0, "a", "i", "e"),
+        run_record(5.0, "ended", ["a"], outcome="cancelled"),
+    )
+    old, cut, new = runs(found)
+    assert (old.outcome, old.end) == (Outcome.FINISHED, 2.0)
+    assert (cut.outcome, cut.end) == (Outcome.INTERRUPTED, 3.0)
+    assert (new.outcome, new.start, new.end) == (Outcome.CANCELLED, 4.0, 5.0)
