@@ -20,7 +20,7 @@ from urllib.parse import urlencode
 from fastapi import HTTPException, Query
 from sqlalchemy import Select, and_, or_
 
-from app.store.audit import AuditFilter
+from app.store.audit import AuditFilter, AuditKind
 from app.store.tables import AuditRecord
 from app.web.limits import (
     KIND_CHARS,
@@ -60,11 +60,11 @@ class ShownFilter(AuditFilter):
 
     def apply(self, query: Select[Any]) -> Select[Any]:
         query = super().apply(query)
-        people = or_(AuditRecord.user != "", AuditRecord.kind == "alarm")
+        people = or_(AuditRecord.user != "", AuditRecord.kind == AuditKind.ALARM)
         if self.show == "people":
             return query.where(people)
         if self.show == "station":
-            return query.where(and_(AuditRecord.user == "", AuditRecord.kind != "alarm"))
+            return query.where(and_(AuditRecord.user == "", AuditRecord.kind != AuditKind.ALARM))
         return query
 
 

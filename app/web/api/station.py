@@ -10,10 +10,9 @@ from app.station.view import StationView
 from app.web.api.common import BEARER, PREFIX, errors
 from app.web.deps import LiveDep, StationOrTasksCaller
 from planner.model.expressions import format_expr
-from planner.runner import IntentionState, TransitionPlan
+from planner.runner import IntentionState, OperationState, TransitionPlan
 
 router = APIRouter(prefix=PREFIX, tags=["station"], dependencies=BEARER)
-INITIAL = IntentionState.INITIAL.value  # the same letter for operations
 
 
 class ResourceOut(BaseModel):
@@ -141,8 +140,12 @@ def station_out(view: StationView, name: str) -> StationOut:
             )
             for r in station.resources
         ],
-        intentions={i.name: state.intentions.get(i.name, INITIAL) for i in station.intentions},
-        operations={o.name: state.operations.get(o.name, INITIAL) for o in station.operations},
+        intentions={
+            i.name: state.intentions.get(i.name, IntentionState.INITIAL) for i in station.intentions
+        },
+        operations={
+            o.name: state.operations.get(o.name, OperationState.INITIAL) for o in station.operations
+        },
         goals={name: format_expr(goal) for name, goal in sorted(state.operation_goals.items())},
         failures={name: n for name, n in sorted(state.failures.items()) if n},
         plans=PlansOut(

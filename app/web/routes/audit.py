@@ -36,12 +36,15 @@ from app.web.audit_log import (
 )
 from app.web.deps import AuditCriteria, AuditReader, Caller, LiveDep, StoreDep
 from app.web.pages import render
+from planner.runner import EventKind
 from planner.words import Wording
 
 router = APIRouter(include_in_schema=False)
 
 # kinds shown with the error mark (ISA-101: colour only for what is abnormal)
-ABNORMAL_KINDS = frozenset({"error", "forbidden", "unexpected"})
+ABNORMAL_KINDS = frozenset(
+    {EventKind.ERROR, AuditKind.ERROR, EventKind.FORBIDDEN, EventKind.UNEXPECTED}
+)
 SUMMARY_CHARS = 90
 
 

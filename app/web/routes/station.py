@@ -27,13 +27,18 @@ from app.web.deps import Caller, LiveDep, StationViewer
 from app.web.limits import NAME_CHARS
 from app.web.pages import live_fragment, render
 from planner.model.expressions import Value, format_value
-from planner.runner import Event, EventKind, IntentionState
+from planner.planning.query import PlanStatus
+from planner.runner import Event, EventKind, IntentionState, PlanLevel, ReplanReason
 from planner.runner.waiting import waiting_for
 from planner.words import sentence
 
 router = APIRouter(include_in_schema=False)
 RECENT_PLANS = 6
-PLANNERS = {"OP": "operations", "TP": "transitions"}  # the planning level, in words
+# the planning level, in words
+PLANNERS: dict[str, str] = {
+    PlanLevel.OPERATIONS: "operations",
+    PlanLevel.TRANSITIONS: "transitions",
+}
 
 
 @dataclass(frozen=True)
@@ -152,7 +157,7 @@ def plans_context(view: StationView) -> dict[str, Any]:
     if s.maintenance is not None:
         drawing = plan_view.transition_plan("maintenance", s.maintenance, model, (), words)
         found = [e for e in view.events if e.kind is EventKind.PLAN]
-        found = [e for e in found if e.detail.get("reason") == "maintenance"]
+        found = [e for e in found if e.detail.get("reason") == ReplanReason.MAINTENANCE]
         length = int(found[-1].detail.get("length", 0) or 0) if found else 0
         shown = len(drawing.nodes)
         # the runner follows the plan found up to its last maintenance step (seed 000 4.5)
@@ -200,7 +205,7 @@ def steps(count: int) -> str:
 def planning_row(view: StationView, event: Event) -> dict[str, Any]:
     """One planning call in words, at its time of day."""
     words, detail = view.model.words, event.detail
-    found = detail.get("status") == "found"
+    found = detail.get("status") == PlanStatus.FOUND.value
     result = "found" + (f", {steps(int(detail['length']))}" if "length" in detail else "")
     operation = str(detail.get("operation", ""))
     wall = time.time() - (view.now - event.time)

@@ -61,7 +61,7 @@ def user_rows(session: Session) -> list[UserRow]:
     user name (the login records' index, `ix_audit_kind`, keeps it quick on a long log)."""
     newest = (
         select(AuditRecord.user.label("name"), func.max(AuditRecord.id).label("id"))
-        .where(AuditRecord.kind == "login", AuditRecord.subject == "signed in")
+        .where(AuditRecord.kind == AuditKind.LOGIN, AuditRecord.subject == "signed in")
         .group_by(AuditRecord.user)
         .subquery()
     )
