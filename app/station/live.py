@@ -213,7 +213,6 @@ class LiveStation:
         if not self.simulated:
             raise StationError(f"{what} on simulated or emulated devices only")
 
-
     @property
     def view(self) -> StationView:
         """The view the last round that changed something made (never changed in place)."""

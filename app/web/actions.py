@@ -13,6 +13,7 @@ from typing import TypeVar
 
 from fastapi import HTTPException
 
+from app.pages.cards import CardKind, task_cards
 from app.station.live import LiveStation, StationError
 from planner.model.flat import TransitionKind, VariableKind
 from planner.reading.yaml_reader import closest
@@ -78,7 +79,6 @@ def estimated_value(live: LiveStation, variable: str, text: str) -> tuple[str, b
 def maintenance_step(live: LiveStation, transition: str) -> str:
     """A maintenance transition a task card asks for now: 404 for no such maintenance
     transition, 409 for one nobody asked for."""
-    from app.pages.cards import CardKind, task_cards
 
     model = live.model.station.model
     names = [t.name for t in model.transitions if t.kind is TransitionKind.MAINTENANCE]

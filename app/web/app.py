@@ -1,8 +1,10 @@
-"""The FastAPI application: middleware, error pages, routers per area (STYLE.md)."""
+"""The FastAPI application: middleware, error pages, and every router, per area (STYLE.md):
+the pages (app.web.routes) and the JSON API (app.web.api)."""
 
 from __future__ import annotations
 
 import logging
+from html import escape
 
 from fastapi import FastAPI, HTTPException, Request
 from fastapi.exceptions import RequestValidationError
@@ -11,13 +13,67 @@ from fastapi.staticfiles import StaticFiles
 from starlette.middleware.sessions import SessionMiddleware
 
 from app.station.live import StationError
-from app.web import auth_routes, events, operator
-from app.web.deps import LoginRequired, PasswordChangeRequired, is_api, page_context
+from app.web.api import alarms as api_alarms
+from app.web.api import audit as api_audit
+from app.web.api import control as api_control
+from app.web.api import experiments as api_experiments
+from app.web.api import models as api_models
+from app.web.api import operator as api_operator
+from app.web.api import station as api_station
+from app.web.api import token as api_token
+from app.web.deps import (
+    LoginRequired,
+    PasswordChangeRequired,
+    current_caller,
+    is_api,
+    templates,
+)
 from app.web.headers import SecurityHeaders
+from app.web.limits import BODY_BYTES
+from app.web.pages import values_for
+from app.web.routes import (
+    alarms,
+    assets,
+    audit,
+    auth,
+    control,
+    events,
+    model,
+    operator,
+    simulation,
+    station,
+    timeline,
+    users,
+)
 from app.web.server import STATIC, Server
 
 log = logging.getLogger(__name__)
-BODY_BYTES = 1024 * 1024  # a request body past this is refused (413) before it is parsed
+
+# every router, by area: the pages, then the JSON API (its paths in this order in /docs)
+PAGES = (
+    auth.router,
+    events.router,
+    operator.router,
+    station.router,
+    control.router,
+    simulation.router,
+    model.router,
+    audit.router,
+    users.router,
+    alarms.router,
+    assets.router,
+    timeline.router,
+)
+API = (
+    api_token.router,
+    api_station.router,
+    api_operator.router,
+    api_control.router,
+    api_alarms.router,
+    api_models.router,
+    api_experiments.router,
+    api_audit.router,
+)
 
 
 def create_app(srv: Server, secret: str) -> FastAPI:
@@ -25,7 +81,7 @@ def create_app(srv: Server, secret: str) -> FastAPI:
         title="Sequence Planner station",
         description="Operator, engineer and auditor HMI of one assembly station, and its JSON API.",
         version="0.1.0",
-        max_body_size=BODY_BYTES,  # the model routes allow more (app.web.model_editing)
+        max_body_size=BODY_BYTES,  # the model routes allow more (app.web.limits)
     )
     app.state.server = srv
     app.add_middleware(
@@ -38,9 +94,8 @@ def create_app(srv: Server, secret: str) -> FastAPI:
     )
     app.add_middleware(SecurityHeaders)  # outermost: on every answer, errors included
     app.mount("/static", StaticFiles(directory=str(STATIC)), name="static")
-    for router in (auth_routes.router, events.router, operator.router):
+    for router in (*PAGES, *API):
         app.include_router(router)
-    _optional_routers(app)
 
     @app.get("/healthz", include_in_schema=False)
     def healthz(since: float | None = None) -> dict[str, object]:
@@ -58,20 +113,6 @@ def create_app(srv: Server, secret: str) -> FastAPI:
     return app
 
 
-def _optional_routers(app: FastAPI) -> None:
-    """Areas built in their own modules (engineer, audit, API), included when present."""
-    import importlib
-
-    for name in ("engineer", "audit", "api", "users", "alarms", "assets", "station_pages"):
-        try:
-            module = importlib.import_module(f"app.web.{name}")
-        except ModuleNotFoundError as exc:
-            if exc.name != f"app.web.{name}":
-                raise
-            continue
-        app.include_router(module.router)
-
-
 async def _login_required(request: Request, _exc: Exception) -> Response:
     if request.headers.get("hx-request"):
         return Response(status_code=401, headers={"HX-Redirect": "/login"})
@@ -85,32 +126,24 @@ async def _password_change(request: Request, _exc: Exception) -> Response:
 
 
 def error_response(request: Request, status: int, message: str) -> Response:
+    """An error as the asker reads it: JSON for the API, the flash for htmx, else a page."""
     if is_api(request) or request.headers.get("hx-request"):
         if request.headers.get("hx-request") and not is_api(request):
             return HTMLResponse(
-                f'<p class="flash flash--error" role="alert">{_escape(message)}</p>',
+                f'<p class="flash flash--error" role="alert">{escape(message)}</p>',
                 status_code=status,
                 headers={"HX-Retarget": "#flash", "HX-Reswap": "innerHTML"},
             )
         return JSONResponse({"detail": message}, status_code=status)
-    srv = request.app.state.server
-    context = page_context(request, None, "error", error=message, status=status)
+    context = values_for(request, None, "error", error=message, status=status)
     try:
-        from app.web.deps import current_caller
-
         context["user"] = current_caller(request)
     except Exception:  # a broken session must not hide the error itself
         context["user"] = None
-    response: Response = srv.templates.TemplateResponse(
+    response: Response = templates(request).TemplateResponse(
         request, "error.html", context, status_code=status
     )
     return response
-
-
-def _escape(text: str) -> str:
-    from html import escape
-
-    return escape(text)
 
 
 async def _http_error(request: Request, exc: HTTPException) -> Response:

@@ -1,4 +1,6 @@
-"""FastAPI dependencies: the server, the current user and their permissions, CSRF checks.
+"""FastAPI dependencies: the server, the current user and their permissions, CSRF checks,
+and the aliases handlers declare them by: the services they touch (`LiveDep`, `StoreDep`,
+`ServerDep`) and what the caller may do (`TasksCaller`, `Controller`, `ModelEditor`, ...).
 
 Pages and API routes share them: a browser session (signed cookie) or, for line systems, a
 bearer token, each looked up in the store on every request (app.people.sessions: revoked at
@@ -14,18 +16,22 @@ import ipaddress
 import logging
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Annotated, Any
 
-from fastapi import HTTPException, Request
+from fastapi import Depends, HTTPException, Request
+from fastapi.templating import Jinja2Templates
 from starlette.concurrency import run_in_threadpool
 
 from app.people import sessions as user_sessions
 from app.people.auth import Permission, allowed, new_csrf_token, same_token
 from app.people.sessions import SessionKind
+from app.station.live import LiveStation
 from app.station.view import StationView
 from app.store import audit, seals
 from app.store.audit import AuditEntry, AuditKind
+from app.store.db import Store
 from app.store.tables import User
+from app.web.audit_log import Criteria, filter_dependency
 from app.web.server import Network, Server
 
 log = logging.getLogger(__name__)
@@ -42,8 +48,34 @@ class PasswordChangeRequired(Exception):
 
 
 def server(request: Request) -> Server:
+    """What the app was made with (app.web.app.create_app).  Handlers declare the part they
+    use (`ServerDep`, `LiveDep`, `StoreDep`); this is for the functions here and for
+    exception handlers, which get no dependencies."""
     found: Server = request.app.state.server
     return found
+
+
+def templates(request: Request) -> Jinja2Templates:
+    """The page templates (for app.web.pages' helpers, which render for a handler)."""
+    return server(request).templates
+
+
+# cheap, so on the event loop (a plain `def` dependency would take a worker thread)
+async def _server(request: Request) -> Server:
+    return server(request)
+
+
+async def _live(request: Request) -> LiveStation:
+    return server(request).live
+
+
+async def _store(request: Request) -> Store:
+    return server(request).store
+
+
+ServerDep = Annotated[Server, Depends(_server)]
+LiveDep = Annotated[LiveStation, Depends(_live)]
+StoreDep = Annotated[Store, Depends(_store)]
 
 
 @dataclass(frozen=True)
@@ -180,6 +212,30 @@ def require(*permissions: Permission) -> Callable[[Request], Awaitable[Caller]]:
         return caller
 
     return dependency
+
+
+def optional_caller(request: Request) -> Caller | None:
+    """The caller, or None for nobody signed in: for pages that send nobody somewhere of
+    their own (read from the store, so in a worker thread)."""
+    return current_caller(request)
+
+
+OptionalCaller = Annotated[Caller | None, Depends(optional_caller)]
+# the caller, signed in and holding the permission (or a 401, a sign-in redirect or a 403
+# before the handler runs), named after what the permission lets them do
+TasksCaller = Annotated[Caller, Depends(require(Permission.TASKS))]
+AlarmViewer = Annotated[Caller, Depends(require(Permission.ALARMS))]
+Acknowledger = Annotated[Caller, Depends(require(Permission.ACKNOWLEDGE))]
+StationViewer = Annotated[Caller, Depends(require(Permission.STATION))]
+StationOrTasksCaller = Annotated[Caller, Depends(require(Permission.STATION, Permission.TASKS))]
+Controller = Annotated[Caller, Depends(require(Permission.CONTROL))]
+ModelEditor = Annotated[Caller, Depends(require(Permission.MODEL))]
+Activator = Annotated[Caller, Depends(require(Permission.ACTIVATE))]
+Simulator = Annotated[Caller, Depends(require(Permission.SIMULATE))]
+AuditReader = Annotated[Caller, Depends(require(Permission.AUDIT))]
+UserAdmin = Annotated[Caller, Depends(require(Permission.USERS))]
+# the audit log's filter from the query string, or a 422 that says what to fix
+AuditCriteria = Annotated[Criteria, Depends(filter_dependency)]
 
 
 def refusal(request: Request, role: str, permissions: tuple[Permission, ...]) -> str:

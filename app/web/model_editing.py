@@ -16,23 +16,16 @@ from fastapi import HTTPException
 from sqlalchemy.orm import Session
 from starlette.concurrency import run_in_threadpool
 
+from app.station.experiments import experiments
 from app.station.view import build_model
 from app.store import audit, versions
 from app.store.audit import AuditEntry, AuditKind
 from app.store.tables import ModelVersion
 from app.web.actions import answer
+from app.web.limits import MAX_MODEL_CHARS
 from app.web.server import Server
 from planner.reading import load_station
 from planner.reading.yaml_reader import ModelError
-
-MAX_MODEL_CHARS = 2_000_000
-# what a request carrying a model may be: the text URL- or JSON-encoded (every other request
-# is held to BODY_BYTES, app.web.app), and the form field once decoded (UTF-8)
-MODEL_BODY_BYTES = 8 * 1024 * 1024
-MODEL_FORM_LIMITS = {"max_part_size": 4 * MAX_MODEL_CHARS}
-# the largest version number a request may name: as the API's; beyond 64 bits SQLite
-# raises OverflowError, which was a 500 (a bound at the edge makes it a 422)
-MAX_VERSION = 1_000_000_000
 
 
 @dataclass(frozen=True)
@@ -117,6 +110,4 @@ async def activate(srv: Server, number: int, user: str) -> None:
         gc.collect()  # one long collection, while the station is idle or in restart mode
         gc.freeze()
     if srv.experiments:
-        from app.station.experiments import experiments
-
         srv.experiments = experiments(model.station)

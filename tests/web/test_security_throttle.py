@@ -13,7 +13,7 @@ import pytest
 from starlette.testclient import TestClient
 
 from app.people.throttle import Attempt, Refused, SignInThrottle
-from app.web import auth_routes
+from app.web import sign_in
 from app.web.server import parse_networks
 from tests.support.stations import RunningStation, form_token, new_password
 
@@ -113,13 +113,13 @@ def test_an_unknown_name_costs_a_password_check_like_a_known_one(
     station: RunningStation, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     checked: list[str] = []
-    real = auth_routes.password_matches
+    real = sign_in.password_matches
 
     def counting(stored: str, password: str) -> bool:
         checked.append(stored)
         return real(stored, password)
 
-    monkeypatch.setattr(auth_routes, "password_matches", counting)
+    monkeypatch.setattr(sign_in, "password_matches", counting)
     client = client_at(station, "10.5.5.5")
     assert try_password(client, "nobody-here", "guess") == 401
     assert try_password(client, "operator", "guess") == 401

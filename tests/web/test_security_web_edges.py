@@ -497,7 +497,7 @@ REFERERS = (
 def test_the_way_back_is_a_path_of_this_station(referer: str, expected: str) -> None:
     from starlette.requests import Request
 
-    from app.web.operator import same_origin_path
+    from app.web.pages import same_origin_path
 
     headers = [(b"host", b"127.0.0.1")] + ([(b"referer", referer.encode())] if referer else [])
     scope = {"type": "http", "scheme": "http", "server": ("127.0.0.1", 80), "path": "/tasks/done"}

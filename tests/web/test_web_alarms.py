@@ -16,7 +16,7 @@ from sqlalchemy import select
 
 from app.station.alarms import Alarm
 from app.store.tables import AuditRecord
-from app.web.alarms import moment, relative
+from app.web.routes.alarms import moment, relative
 from hw.faults import Fault, FaultKind
 from planner.runner import StartIntention
 from tests.support.stations import RunningStation

@@ -322,7 +322,7 @@ def test_plan_drawing_puts_independent_steps_side_by_side():
 
 def test_plan_steps_are_words_wrapped_never_cut_and_counted_in_good_english():
     from app.pages import plans as plan_view
-    from app.web.engineer import steps
+    from app.web.routes.station import steps
 
     long = "find the hanging tools with robot 1's camera and wait for the operator to answer"
     lines = plan_view.wrap(long)

@@ -93,7 +93,7 @@ def test_a_tap_that_came_too_late_gets_the_fresh_card_and_a_word_not_an_error(
 
 def test_one_card_at_a_time_with_the_count_of_the_others(station: RunningStation) -> None:
     from app.pages.cards import CardKind, TaskCard
-    from app.web.operator import card_context
+    from app.web.routes.operator import card_context
 
     shown = card_context(station.live.view)
     cards = [

@@ -1,6 +1,7 @@
 """The model editor: a version's text in the code editor, validation with located problems,
 saving as a new version, the versions with their diff to the active one, and activation
-(the heading follows it at once).  Split from app.web.engineer, whose page helpers it uses.
+(the heading follows it at once).  What it does to versions is app.web.model_editing, which
+the API shares.
 """
 
 from __future__ import annotations
@@ -13,14 +14,22 @@ from fastapi.responses import RedirectResponse, Response
 
 from app.store import versions
 from app.web import model_editing
-from app.web.deps import Caller, server
-from app.web.engineer import Activator, ModelEditor, htmx, live_fragment, render
+from app.web.deps import Activator, Caller, LiveDep, ModelEditor, ServerDep
+from app.web.limits import (
+    MAX_MODEL_CHARS,
+    MAX_VERSION,
+    MODEL_BODY_BYTES,
+    MODEL_FORM_LIMITS,
+    NOTE_CHARS,
+)
+from app.web.pages import htmx, live_fragment, render
+from app.web.server import Server
 
 router = APIRouter(include_in_schema=False)
+Text = Annotated[str, Form(max_length=MAX_MODEL_CHARS)]
 
 
-def versions_context(request: Request) -> dict[str, Any]:
-    srv = server(request)
+def versions_context(srv: Server) -> dict[str, Any]:
     active_id = srv.live.model.version_id
     with srv.store.sessions() as session:
         rows = [
@@ -36,16 +45,13 @@ def versions_context(request: Request) -> dict[str, Any]:
     return {"versions": rows, "active_number": srv.live.model.number}
 
 
-def busy_context(request: Request) -> dict[str, Any]:
-    return {"busy": server(request).live.busy()}
-
-
 def model_page(
     request: Request,
     caller: Caller,
+    srv: Server,
     text: str,
     shown: str,
-    status: int = 200,
+    status_code: int = 200,
     **extra: Any,
 ) -> Response:
     return render(
@@ -53,12 +59,12 @@ def model_page(
         "model.html",
         caller,
         "model",
-        server(request).live.view,
-        status=status,
+        view=srv.live.view,
+        status_code=status_code,
         text=text,
         shown=shown,
-        **versions_context(request),
-        **busy_context(request),
+        **versions_context(srv),
+        busy=srv.live.busy(),
         **extra,
     )
 
@@ -67,50 +73,47 @@ def model_page(
 def model_editor(
     request: Request,
     caller: ModelEditor,
-    version: Annotated[int | None, Query(ge=1, le=model_editing.MAX_VERSION)] = None,
+    srv: ServerDep,
+    version: Annotated[int | None, Query(ge=1, le=MAX_VERSION)] = None,
 ) -> Response:
-    srv = server(request)
     if version is None:
         text, shown = srv.live.model.text, f"version {srv.live.model.number} (active)"
     else:
         text, shown = model_editing.stored(srv, version).text, f"version {version}"
-    return model_page(request, caller, text, shown)
-
-
-Text = Annotated[str, Form(max_length=model_editing.MAX_MODEL_CHARS)]
+    return model_page(request, caller, srv, text, shown)
 
 
 @router.post(
     "/model/validate",
-    max_body_size=model_editing.MODEL_BODY_BYTES,
-    form_limits=model_editing.MODEL_FORM_LIMITS,  # type: ignore[arg-type]
+    max_body_size=MODEL_BODY_BYTES,
+    form_limits=MODEL_FORM_LIMITS,  # type: ignore[arg-type]
 )
-def validate_model(request: Request, caller: ModelEditor, text: Text = "") -> Response:
+def validate_model(
+    request: Request, caller: ModelEditor, live: LiveDep, text: Text = ""
+) -> Response:
     found = model_editing.problems(text)
-    return render(
-        request, "_model_errors.html", caller, "model", server(request).live.view, problems=found
-    )
+    return render(request, "_model_errors.html", caller, "model", view=live.view, problems=found)
 
 
 @router.post(
     "/model/save",
-    max_body_size=model_editing.MODEL_BODY_BYTES,
-    form_limits=model_editing.MODEL_FORM_LIMITS,  # type: ignore[arg-type]
+    max_body_size=MODEL_BODY_BYTES,
+    form_limits=MODEL_FORM_LIMITS,  # type: ignore[arg-type]
 )
 def save_model(
     request: Request,
     caller: ModelEditor,
+    srv: ServerDep,
     text: Text = "",
-    note: Annotated[str, Form(max_length=500)] = "",
+    note: Annotated[str, Form(max_length=NOTE_CHARS)] = "",
 ) -> Response:
-    srv = server(request)
     row, found = model_editing.save(srv, text, caller.name, note.strip())
     view = srv.live.view
     if row is None:
         message = f"Not saved: the model has {len(found)} problem{'' if len(found) == 1 else 's'}."
         if not htmx(request):
             return model_page(
-                request, caller, text, "unsaved text", 422, problems=found, error=message
+                request, caller, srv, text, "unsaved text", 422, problems=found, error=message
             )
         headers = {"HX-Retarget": "#model-errors", "HX-Reswap": "outerHTML"}
         return render(
@@ -118,8 +121,8 @@ def save_model(
             "_model_errors.html",
             caller,
             "model",
-            view,
-            status=422,
+            view=view,
+            status_code=422,
             headers=headers,
             problems=found,
             flash_error=message,
@@ -131,12 +134,12 @@ def save_model(
         "_model_versions.html",
         caller,
         "model",
-        view,
+        view=view,
         flash=f"Saved as version {row.number}; activate it to run it.",
         problems=[],
         clear_errors=True,
-        **versions_context(request),
-        **busy_context(request),
+        **versions_context(srv),
+        busy=srv.live.busy(),
     )
 
 
@@ -144,9 +147,9 @@ def save_model(
 def model_diff(
     request: Request,
     caller: ModelEditor,
-    version: Annotated[int, Query(ge=1, le=model_editing.MAX_VERSION)],
+    srv: ServerDep,
+    version: Annotated[int, Query(ge=1, le=MAX_VERSION)],
 ) -> Response:
-    srv = server(request)
     row = model_editing.stored(srv, version)
     active = srv.live.model
     lines = model_editing.diff(
@@ -154,17 +157,18 @@ def model_diff(
     )
     context: dict[str, Any] = {"diff": lines, "diff_version": version, "diff_active": active.number}
     if htmx(request):
-        return render(request, "_model_diff.html", caller, "model", srv.live.view, **context)
-    return model_page(request, caller, active.text, f"version {active.number} (active)", **context)
+        return render(request, "_model_diff.html", caller, "model", view=srv.live.view, **context)
+    shown = f"version {active.number} (active)"
+    return model_page(request, caller, srv, active.text, shown, **context)
 
 
 @router.post("/model/activate")
 async def activate_model(
     request: Request,
     caller: Activator,
-    version: Annotated[int, Form(ge=1, le=model_editing.MAX_VERSION)],
+    srv: ServerDep,
+    version: Annotated[int, Form(ge=1, le=MAX_VERSION)],
 ) -> Response:
-    srv = server(request)
     await model_editing.activate(srv, version, caller.name)
     if not htmx(request):
         return RedirectResponse("/model", status_code=303)
@@ -173,16 +177,17 @@ async def activate_model(
         "_model_versions.html",
         caller,
         "model",
-        srv.live.view,
+        view=srv.live.view,
         flash=f"Version {version} is active now.",
         activated=True,
-        **versions_context(request),
-        **busy_context(request),
+        **versions_context(srv),
+        busy=srv.live.busy(),
     )
 
 
 @router.get("/model/fragments/station")
-def model_station(request: Request, caller: ModelEditor) -> Response:
-    view = server(request).live.view
-    context = busy_context(request)
-    return live_fragment(request, "_model_station.html", caller, "model", view, **context)
+def model_station(request: Request, caller: ModelEditor, live: LiveDep) -> Response:
+    view = live.view
+    return live_fragment(
+        request, "_model_station.html", caller, "model", view=view, busy=live.busy()
+    )

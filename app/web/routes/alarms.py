@@ -12,19 +12,22 @@ from __future__ import annotations
 from collections.abc import Iterable
 from dataclasses import dataclass
 from datetime import datetime
-from typing import Annotated, Any
+from typing import Annotated
 
-from fastapi import APIRouter, Depends, Form, HTTPException, Request
+from fastapi import APIRouter, Form, HTTPException, Request
 from fastapi.responses import RedirectResponse, Response
 
 from app.people.auth import Permission, allowed
 from app.station.alarms import Alarm, AlarmState
+from app.station.live import LiveStation
 from app.web.actions import answer
-from app.web.deps import Caller, current_caller, page_context, require, server
+from app.web.deps import Acknowledger, AlarmViewer, Caller, LiveDep, OptionalCaller
+from app.web.limits import KEY_CHARS, MOST_KEYS, NOTE_CHARS, SHELVE_MINUTES
+from app.web.pages import htmx, render
 
 router = APIRouter(include_in_schema=False)
-KEY_LENGTH = 200  # an alarm's key, as the store keeps it (AlarmRecord.key)
-MOST_KEYS = 1000  # alarms one "acknowledge all" may name
+Key = Annotated[str, Form(max_length=KEY_CHARS)]
+Note = Annotated[str, Form(max_length=NOTE_CHARS)]
 
 
 @dataclass(frozen=True, slots=True)
@@ -109,95 +112,87 @@ def rows(alarms: Iterable[Alarm], now: float) -> list[AlarmRow]:
     ]
 
 
-def render(
+def alarms_page(
     request: Request,
     template: str,
     caller: Caller | None,
+    live: LiveStation,
     fragment: bool = False,
     acted: bool = False,
 ) -> Response:
     """The page or its list; a fragment carries the badge, and after a form that succeeded
     an empty flash (htmx swaps both out of band: an earlier refusal's message goes)."""
-    srv = server(request)
-    now = srv.live.wall()
-    extra: dict[str, Any] = {
-        "alarms": rows(srv.live.view.alarms, now),
-        "now": round(now, 3),
-        "may_act": caller is not None and allowed(caller.role, Permission.ACKNOWLEDGE),
-        "badge_oob": fragment,
-        "flash_clear": acted,
-    }
-    response: Response = srv.templates.TemplateResponse(
-        request, template, page_context(request, caller, "alarms", **extra)
+    now = live.wall()
+    return render(
+        request,
+        template,
+        caller,
+        "alarms",
+        alarms=rows(live.view.alarms, now),
+        now=round(now, 3),
+        may_act=caller is not None and allowed(caller.role, Permission.ACKNOWLEDGE),
+        badge_oob=fragment,
+        flash_clear=acted,
     )
-    return response
 
 
 @router.get("/alarms")
-def alarms(request: Request) -> Response:
-    caller = current_caller(request)
+def alarms(request: Request, caller: OptionalCaller, live: LiveDep) -> Response:
     if caller is None:
         return RedirectResponse("/login?next=/alarms", status_code=303)
-    return render(request, "alarms.html", caller)
+    return alarms_page(request, "alarms.html", caller, live)
 
 
 @router.get("/fragments/alarms")
-async def alarms_fragment(
-    request: Request, caller: Annotated[Caller, Depends(require(Permission.ALARMS))]
-) -> Response:
-    return render(request, "_alarms.html", caller, fragment=True)
+async def alarms_fragment(request: Request, caller: AlarmViewer, live: LiveDep) -> Response:
+    return alarms_page(request, "_alarms.html", caller, live, fragment=True)
 
 
 @router.post("/alarms/acknowledge")
 async def acknowledge(
-    request: Request,
-    caller: Annotated[Caller, Depends(require(Permission.ACKNOWLEDGE))],
-    key: Annotated[str, Form(max_length=KEY_LENGTH)],
-    note: Annotated[str, Form(max_length=500)] = "",
+    request: Request, caller: Acknowledger, live: LiveDep, key: Key, note: Note = ""
 ) -> Response:
-    await answer(server(request).live.acknowledge(key, caller.name, note.strip()))
-    return _back(request, caller)
+    await answer(live.acknowledge(key, caller.name, note.strip()))
+    return _back(request, caller, live)
 
 
 @router.post("/alarms/acknowledge-all")
 async def acknowledge_all(
     request: Request,
-    caller: Annotated[Caller, Depends(require(Permission.ACKNOWLEDGE))],
+    caller: Acknowledger,
+    live: LiveDep,
     keys: Annotated[list[str], Form(max_length=MOST_KEYS)],
-    note: Annotated[str, Form(max_length=500)] = "",
+    note: Note = "",
 ) -> Response:
     """The alarms the page showed as waiting (its hidden `keys`), with one note: one
     that arrived after the page was drawn is not acknowledged unseen."""
-    if any(len(key) > KEY_LENGTH for key in keys):
-        raise HTTPException(422, f"keys: an alarm's key has at most {KEY_LENGTH} characters")
-    await answer(server(request).live.acknowledge_all(keys, caller.name, note.strip()))
-    return _back(request, caller)
+    if any(len(key) > KEY_CHARS for key in keys):
+        raise HTTPException(422, f"keys: an alarm's key has at most {KEY_CHARS} characters")
+    await answer(live.acknowledge_all(keys, caller.name, note.strip()))
+    return _back(request, caller, live)
 
 
 @router.post("/alarms/shelve")
 async def shelve(
     request: Request,
-    caller: Annotated[Caller, Depends(require(Permission.ACKNOWLEDGE))],
-    key: Annotated[str, Form(max_length=KEY_LENGTH)],
-    minutes: Annotated[float, Form(gt=0, le=480)],
-    note: Annotated[str, Form(max_length=500)] = "",
+    caller: Acknowledger,
+    live: LiveDep,
+    key: Key,
+    minutes: Annotated[float, Form(gt=0, le=SHELVE_MINUTES)],
+    note: Note = "",
 ) -> Response:
-    await answer(server(request).live.shelve(key, caller.name, minutes, note.strip()))
-    return _back(request, caller)
+    await answer(live.shelve(key, caller.name, minutes, note.strip()))
+    return _back(request, caller, live)
 
 
 @router.post("/alarms/unshelve")
-async def unshelve(
-    request: Request,
-    caller: Annotated[Caller, Depends(require(Permission.ACKNOWLEDGE))],
-    key: Annotated[str, Form(max_length=KEY_LENGTH)],
-) -> Response:
-    await answer(server(request).live.unshelve(key, caller.name))
-    return _back(request, caller)
+async def unshelve(request: Request, caller: Acknowledger, live: LiveDep, key: Key) -> Response:
+    await answer(live.unshelve(key, caller.name))
+    return _back(request, caller, live)
 
 
-def _back(request: Request, caller: Caller) -> Response:
+def _back(request: Request, caller: Caller, live: LiveStation) -> Response:
     """After a form: htmx gets the refreshed list (and badge), a plain browser a redirect."""
-    if request.headers.get("hx-request"):
-        return render(request, "_alarms.html", caller, fragment=True, acted=True)
+    if htmx(request):
+        return alarms_page(request, "_alarms.html", caller, live, fragment=True, acted=True)
     return RedirectResponse("/alarms", status_code=303)

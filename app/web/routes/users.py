@@ -11,9 +11,9 @@ import re
 from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import UTC, datetime
-from typing import Annotated
+from typing import Annotated, Any
 
-from fastapi import APIRouter, Depends, Form, HTTPException, Request
+from fastapi import APIRouter, Form, HTTPException, Request
 from fastapi.responses import RedirectResponse, Response
 from sqlalchemy import func, select
 from sqlalchemy.exc import IntegrityError
@@ -22,7 +22,6 @@ from sqlalchemy.orm import Session
 from app.people import sessions as user_sessions
 from app.people.auth import (
     ROLES,
-    Permission,
     Role,
     add_user,
     hash_password,
@@ -33,11 +32,16 @@ from app.store import audit
 from app.store.audit import AuditEntry, AuditKind
 from app.store.seals import TamperedUser
 from app.store.tables import AuditRecord, User
-from app.web.deps import Caller, page_context, require, server
+from app.web.deps import Caller, ServerDep, UserAdmin
+from app.web.limits import PASSWORD_CHARS, ROLE_CHARS, USER_CHARS
+from app.web.pages import render
 from app.web.server import Server
 
 router = APIRouter(include_in_schema=False)
 NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_.-]{0,63}$")
+UserName = Annotated[str, Form(max_length=USER_CHARS)]
+Password = Annotated[str, Form(max_length=PASSWORD_CHARS)]
+RoleName = Annotated[str, Form(max_length=ROLE_CHARS)]
 
 
 @dataclass(frozen=True, slots=True)
@@ -57,7 +61,7 @@ def user_rows(session: Session) -> list[UserRow]:
     user name (the login records' index, `ix_audit_kind`, keeps it quick on a long log)."""
     newest = (
         select(AuditRecord.user.label("name"), func.max(AuditRecord.id).label("id"))
-        .where(AuditRecord.kind == "login", AuditRecord.subject == "signed in")
+        .where(AuditRecord.kind == AuditKind.LOGIN, AuditRecord.subject == "signed in")
         .group_by(AuditRecord.user)
         .subquery()
     )
@@ -95,33 +99,37 @@ def _address(detail: str | None) -> str:
     return found if isinstance(found, str) else ""
 
 
-def _page(request: Request, caller: Caller, status: int = 200, **extra: object) -> Response:
-    srv = server(request)
+def _page(
+    request: Request, caller: Caller, srv: Server, status_code: int = 200, **extra: Any
+) -> Response:
     with srv.store.sessions() as session:
         users = user_rows(session)
-    context = page_context(request, caller, "users", users=users, roles=ROLES, **extra)
-    response: Response = srv.templates.TemplateResponse(
-        request, "users.html", context, status_code=status
+    return render(
+        request,
+        "users.html",
+        caller,
+        "users",
+        status_code=status_code,
+        users=users,
+        roles=ROLES,
+        **extra,
     )
-    return response
 
 
 @router.get("/users")
-def users(
-    request: Request, caller: Annotated[Caller, Depends(require(Permission.USERS))]
-) -> Response:
-    return _page(request, caller)
+def users(request: Request, caller: UserAdmin, srv: ServerDep) -> Response:
+    return _page(request, caller, srv)
 
 
 @router.post("/users")
 def add(
     request: Request,
-    caller: Annotated[Caller, Depends(require(Permission.USERS))],
-    name: Annotated[str, Form(max_length=64)],
-    role: Annotated[str, Form(max_length=16)],
-    password: Annotated[str, Form(max_length=200)],
+    caller: UserAdmin,
+    srv: ServerDep,
+    name: UserName,
+    role: RoleName,
+    password: Password,
 ) -> Response:
-    srv = server(request)
     name = name.strip()
     problem = ""
     if not NAME.match(name):
@@ -131,7 +139,7 @@ def add(
     else:
         problem = password_problem(name, password)
     if problem:
-        return _page(request, caller, 422, error=problem)
+        return _page(request, caller, srv, 422, error=problem)
 
     def added(session: Session) -> bool:
         if user_named(session, name) is not None:
@@ -145,20 +153,23 @@ def add(
     except IntegrityError:  # another station of the same database took the name just now
         done = False
     if not done:
-        return _page(request, caller, 409, error=f"there is already a user '{name}'")
+        return _page(request, caller, srv, 409, error=f"there is already a user '{name}'")
     return _page(
-        request, caller, message=f"Added {name} ({role}); they choose a password at first sign-in"
+        request,
+        caller,
+        srv,
+        message=f"Added {name} ({role}); they choose a password at first sign-in",
     )
 
 
 @router.post("/users/disable")
 def disable(
     request: Request,
-    caller: Annotated[Caller, Depends(require(Permission.USERS))],
-    name: Annotated[str, Form(max_length=64)],
+    caller: UserAdmin,
+    srv: ServerDep,
+    name: UserName,
     disabled: Annotated[bool, Form()],
 ) -> Response:
-    srv = server(request)
     if name == caller.name:
         raise HTTPException(409, "you cannot disable yourself")
     subject = "disabled" if disabled else "enabled"
@@ -172,24 +183,24 @@ def disable(
             detail["sessions_ended"] = user_sessions.revoke_all(session, user.id, "disabled", now)
 
     _write(srv, AuditEntry(AuditKind.USER, subject, caller.name, "", detail), now, change)
-    return _page(request, caller, message=f"{name} is {subject}")
+    return _page(request, caller, srv, message=f"{name} is {subject}")
 
 
 @router.post("/users/password")
 def reset_password(
     request: Request,
-    caller: Annotated[Caller, Depends(require(Permission.USERS))],
-    name: Annotated[str, Form(max_length=64)],
-    password: Annotated[str, Form(max_length=200)],
+    caller: UserAdmin,
+    srv: ServerDep,
+    name: UserName,
+    password: Password,
 ) -> Response:
     """A new first-login password for someone who forgot theirs: they must change it at their
     next sign-in, and whatever they were signed in with ends now."""
-    srv = server(request)
     if name == caller.name:
         raise HTTPException(409, "change your own password with Change password (/password)")
     problem = password_problem(name, password)
     if problem:
-        return _page(request, caller, 422, error=problem)
+        return _page(request, caller, srv, 422, error=problem)
     now = srv.live.wall()
     detail: dict[str, object] = {"name": name}
 
@@ -201,24 +212,27 @@ def reset_password(
 
     _write(srv, AuditEntry(AuditKind.USER, "password reset", caller.name, "", detail), now, reset)
     return _page(
-        request, caller, message=f"{name} has a new first-login password; they choose their own"
+        request,
+        caller,
+        srv,
+        message=f"{name} has a new first-login password; they choose their own",
     )
 
 
 @router.post("/users/role")
 def change_role(
     request: Request,
-    caller: Annotated[Caller, Depends(require(Permission.USERS))],
-    name: Annotated[str, Form(max_length=64)],
-    role: Annotated[str, Form(max_length=16)],
+    caller: UserAdmin,
+    srv: ServerDep,
+    name: UserName,
+    role: RoleName,
 ) -> Response:
     """Give a user another role; their sessions end, so the new role's permissions hold from
     their next sign-in.  The last enabled admin may not step down (nobody could manage the
     users any more); an admin who does step down is signed out with the rest."""
-    srv = server(request)
     if role not in ROLES:
         return _page(
-            request, caller, 422, error=f"unknown role '{role}'; use one of {', '.join(ROLES)}"
+            request, caller, srv, 422, error=f"unknown role '{role}'; use one of {', '.join(ROLES)}"
         )
     now = srv.live.wall()
     detail: dict[str, object] = {"name": name, "role": role}
@@ -237,7 +251,7 @@ def change_role(
     if name == caller.name:  # their own session ended with the others
         request.session.clear()
         return RedirectResponse("/login", status_code=303)
-    return _page(request, caller, message=f"{name} is now {_article(role)} {role}; signed out")
+    return _page(request, caller, srv, message=f"{name} is now {_article(role)} {role}; signed out")
 
 
 def _named(session: Session, name: str) -> User:

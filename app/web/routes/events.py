@@ -18,17 +18,15 @@ from fastapi import APIRouter, Request
 from fastapi.responses import StreamingResponse
 
 from app.station.live import LiveStation
-from app.web.deps import alarm_badge, current_caller, server
+from app.web.deps import LiveDep, OptionalCaller, alarm_badge
 
 router = APIRouter()
 KEEPALIVE = 15.0
+ALARMS = "alarm"  # the area app.station.live announces when an alarm changed
 
 
 @router.get("/events", include_in_schema=False)
-async def events(request: Request) -> StreamingResponse:
-    caller = current_caller(request)
-    live = server(request).live
-
+async def events(request: Request, caller: OptionalCaller, live: LiveDep) -> StreamingResponse:
     async def stream() -> AsyncIterator[str]:
         if caller is None:
             yield "event: signed-out\ndata: /login\n\n"
@@ -37,7 +35,7 @@ async def events(request: Request) -> StreamingResponse:
         try:
             yield f"retry: 1000\nevent: station\ndata: {live.view.version}\n\n"
             # the badge only (static/js/hmi.js); "alarm" would re-fetch every alarm list
-            yield f"event: badge\ndata: {_data(live, 'alarm')}\n\n"
+            yield f"event: badge\ndata: {_data(live, ALARMS)}\n\n"
             while not await request.is_disconnected():
                 try:
                     kind = await asyncio.wait_for(changes.get(), KEEPALIVE)
@@ -54,7 +52,7 @@ async def events(request: Request) -> StreamingResponse:
 
 def _data(live: LiveStation, kind: str) -> str:
     """The alarm event carries the badge's count and highest priority; others the version."""
-    if kind != "alarm":
+    if kind != ALARMS:
         return str(live.view.version)
     count, priority = alarm_badge(live.view)
     return json.dumps({"count": count, "priority": priority})

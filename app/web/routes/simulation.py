@@ -1,0 +1,123 @@
+"""The simulation panel: the papers' experiments E1-E9 on the simulated station, each with
+its faults and what it expects of the recovery and of the operator, and what the station
+does while one plays.  A station on real devices has no panel (404)."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Form, HTTPException, Request
+from fastapi.responses import RedirectResponse, Response
+
+from app.pages import plans as plan_view
+from app.pages.cards import task_cards
+from app.station.cycle import ScheduledFault
+from app.station.live import LiveStation
+from app.station.scenario import Scenario
+from app.station.view import StationView
+from app.web.actions import answer, known
+from app.web.deps import ServerDep, Simulator
+from app.web.limits import NAME_CHARS
+from app.web.pages import htmx, live_fragment, render
+from planner.runner import IntentionState, OperationState
+from planner.words import Wording
+
+router = APIRouter(include_in_schema=False)
+Experiments = dict[str, tuple[str, Scenario]]  # id -> (title, scenario), as Server keeps them
+
+
+def simulated(live: LiveStation) -> StationView:
+    view = live.view
+    if not live.simulated:
+        raise HTTPException(404, "this station runs real devices: there is no simulation panel")
+    return view
+
+
+def fault_text(fault: ScheduledFault, words: Wording) -> str:
+    text = plan_view.fault_words(fault.fault, words)
+    if fault.when is not None:
+        return f"{text}, when {words.condition(fault.when)}"
+    if fault.at is not None:
+        return f"{text}, {fault.at:g} s after the start"
+    return text
+
+
+def experiments_context(experiments: Experiments, words: Wording) -> dict[str, Any]:
+    rows = []
+    for key, (title, scenario) in sorted(experiments.items()):
+        expect = scenario.expect
+        rows.append(
+            {
+                "id": key,
+                "title": words.text(title),
+                "description": words.text(scenario.description),
+                "intentions": [words.intention(i) for i in scenario.intentions or ()],
+                "faults": [fault_text(f, words) for f in scenario.faults],
+                "recovery": [words.text(str(r)) for r in expect.get("recovery") or ()],
+                "operator": [words.text(str(o)) for o in expect.get("operator") or ()],
+            }
+        )
+    return {"experiments": rows}
+
+
+def simulation_status(experiments: Experiments, view: StationView) -> dict[str, Any]:
+    s, words = view.state, view.model.words
+    playing = [sc for title, sc in experiments.values() if title == view.experiment]
+    faults = playing[0].faults if playing else ()
+    said = {f.text: fault_text(f, words) for f in faults}
+    return {
+        "armed": [said.get(text, words.text(text)) for text in view.armed_faults],
+        "executing": [words.intention(n) for n in s.intentions_in(IntentionState.EXECUTING)]
+        + [words.operation(n) for n in s.operations_in(OperationState.EXECUTING)],
+        "errors": [words.intention(n) for n in s.intentions_in(IntentionState.ERROR)]
+        + [words.operation(n) for n in s.operations_in(OperationState.ERROR)],
+        "tasks": len(task_cards(view)),
+    }
+
+
+@router.get("/simulation")
+def simulation_page(request: Request, caller: Simulator, srv: ServerDep) -> Response:
+    view = simulated(srv.live)
+    return render(
+        request,
+        "simulation.html",
+        caller,
+        "simulation",
+        view=view,
+        **experiments_context(srv.experiments, srv.live.view.model.words),
+        **simulation_status(srv.experiments, view),
+    )
+
+
+@router.get("/simulation/fragments/status")
+def simulation_fragment(request: Request, caller: Simulator, srv: ServerDep) -> Response:
+    view = simulated(srv.live)
+    context = simulation_status(srv.experiments, view)
+    return live_fragment(
+        request, "_simulation_status.html", caller, "simulation", view=view, **context
+    )
+
+
+@router.post("/simulation/experiment")
+async def play_experiment(
+    request: Request,
+    caller: Simulator,
+    srv: ServerDep,
+    experiment: Annotated[str, Form(max_length=NAME_CHARS)],
+) -> Response:
+    simulated(srv.live)
+    key = known(experiment.strip(), sorted(srv.experiments), "experiment")
+    title, scenario = srv.experiments[key]
+    await answer(srv.live.play_experiment(scenario, title, caller.name))
+    if not htmx(request):
+        return RedirectResponse("/simulation", status_code=303)
+    view = srv.live.view
+    return render(
+        request,
+        "_simulation_status.html",
+        caller,
+        "simulation",
+        view=view,
+        flash=f"{view.model.words.text(title)}: started. Watch the station and the tasks pages.",
+        **simulation_status(srv.experiments, view),
+    )
