@@ -303,34 +303,34 @@ def test_simulation_panel_plays_an_experiment(station: RunningStation):
 
 
 def test_plan_drawing_puts_independent_steps_side_by_side():
-    from app.pages import plans as plan_view
+    from app.pages import plans
 
     after = [frozenset(), frozenset(), frozenset({0}), frozenset({0, 1, 2})]
-    assert plan_view.levels(after) == [0, 0, 1, 2]
+    assert plans.levels(after) == [0, 0, 1, 2]
     # 3 waits for 0 through 2: only the direct arrows are drawn
-    assert plan_view.direct(after) == [frozenset(), frozenset(), frozenset({0}), {1, 2}]
-    steps = [plan_view.Step(f"s{k}", "waiting", "", "") for k in range(4)]
-    drawing = plan_view.layout("test", steps, after)
+    assert plans.direct(after) == [frozenset(), frozenset(), frozenset({0}), {1, 2}]
+    steps = [plans.Step(f"s{k}", "waiting", "", "") for k in range(4)]
+    drawing = plans.layout("test", steps, after)
     s0, s1, s2, s3 = drawing.nodes
     assert s0.y == s1.y < s2.y < s3.y and s0.x < s1.x  # 0 and 1 may run in parallel
     assert (drawing.levels, drawing.widest) == (3, 2)
     assert [(e.source, e.target) for e in drawing.edges] == [(0, 2), (1, 3), (2, 3)]
     # the arrow from s1 skips a level: it runs down the gap between the columns
     skip = drawing.edges[1].path
-    assert f"L{s0.x + plan_view.NODE_WIDTH + plan_view.GAP_X // 2}," in skip
+    assert f"L{s0.x + plans.NODE_WIDTH + plans.GAP_X // 2}," in skip
 
 
 def test_plan_steps_are_words_wrapped_never_cut_and_counted_in_good_english():
-    from app.pages import plans as plan_view
+    from app.pages import plans
     from app.web.routes.station import steps
 
     long = "find the hanging tools with robot 1's camera and wait for the operator to answer"
-    lines = plan_view.wrap(long)
-    assert " ".join(lines) == long and all(len(line) <= plan_view.LABEL_CHARS for line in lines)
-    drawing = plan_view.layout("test", [plan_view.Step("s", "ready", "next", "", long)], [()])
+    lines = plans.wrap(long)
+    assert " ".join(lines) == long and all(len(line) <= plans.LABEL_CHARS for line in lines)
+    drawing = plans.layout("test", [plans.Step("s", "ready", "next", "", long)], [()])
     (node,) = drawing.nodes
     assert node.label_lines == lines and node.label == long
-    assert drawing.node_height >= plan_view.NODE_HEIGHT + (len(lines) - 1) * plan_view.LINE
+    assert drawing.node_height >= plans.NODE_HEIGHT + (len(lines) - 1) * plans.LINE
     assert (steps(1), steps(5)) == ("1 step", "5 steps")
 
 

@@ -14,7 +14,7 @@ from typing import Annotated
 from fastapi import APIRouter, Form, Request
 from fastapi.responses import RedirectResponse, Response
 
-from app.pages import plans as plan_view
+from app.pages import station_rows
 from app.station.live import LiveStation
 from app.station.view import StationView
 from app.web.actions import effect_name, estimated_value, intention_name, operation_name, perform
@@ -68,7 +68,7 @@ def started(view: StationView, name: str) -> str:
     """What a Start did: started, or armed until its precondition holds (said in words)."""
     words = view.model.words
     found = [i for i in view.model.station.intentions if i.name == name]
-    waits = plan_view.unmet(found[0].precondition, view.state.values, view.runner.holds, words)
+    waits = station_rows.unmet(found[0].precondition, view.state.values, view.runner.holds, words)
     title = sentence(words.intention(name))
     if waits:
         return f"{title}: starts once its precondition holds; not yet: {waits}."

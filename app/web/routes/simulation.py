@@ -9,7 +9,7 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Form, HTTPException, Request
 from fastapi.responses import RedirectResponse, Response
 
-from app.pages import plans as plan_view
+from app.pages import station_rows
 from app.pages.cards import task_cards
 from app.station.cycle import ScheduledFault
 from app.station.live import LiveStation
@@ -34,7 +34,7 @@ def simulated(live: LiveStation) -> StationView:
 
 
 def fault_text(fault: ScheduledFault, words: Wording) -> str:
-    text = plan_view.fault_words(fault.fault, words)
+    text = station_rows.fault_words(fault.fault, words)
     if fault.when is not None:
         return f"{text}, when {words.condition(fault.when)}"
     if fault.at is not None:

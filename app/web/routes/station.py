@@ -19,7 +19,8 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Query, Request
 from fastapi.responses import Response
 
-from app.pages import plans as plan_view
+from app.pages import station_rows
+from app.pages.plans import operation_plan, transition_plan
 from app.station.view import StationView
 from app.web.actions import known
 from app.web.deps import Caller, LiveDep, StationViewer
@@ -76,7 +77,7 @@ def overview_context(view: StationView) -> dict[str, Any]:
         progress = f"{finished} of {steps} operations done"
     waits = [(str(w.who), sentence(words.text(w.what))) for w in waiting_for(view.runner, s)]
     return {
-        "intentions": plan_view.intention_rows(station, s, words, view.runner.holds),
+        "intentions": station_rows.intention_rows(station, s, words, view.runner.holds),
         "progress": progress,
         "resources": resources,
         "waits": waits,
@@ -129,8 +130,8 @@ def status_context(view: StationView) -> dict[str, Any]:
             for r in station.resources
         ],
         "devices": view.devices,
-        "intentions": plan_view.intention_rows(station, s, words, view.runner.holds),
-        "operations": plan_view.operation_rows(station, s, words),
+        "intentions": station_rows.intention_rows(station, s, words, view.runner.holds),
+        "operations": station_rows.operation_rows(station, s, words),
         "timed_out": sorted(s.timed_out),
         "timed_out_words": {n: sentence(words.step(n)) for n in s.timed_out},
         "forbidden": [words.specification(n) for n in sorted(s.relaxed)]
@@ -150,11 +151,11 @@ def plans_context(view: StationView) -> dict[str, Any]:
             (
                 "Recovery from a forbidden state",
                 "Every step waits for an operator's approval on the tasks page.",
-                plan_view.transition_plan("recovery", s.recovery, model, s.rejected, words),
+                transition_plan("recovery", s.recovery, model, s.rejected, words),
             )
         )
     if s.maintenance is not None:
-        drawing = plan_view.transition_plan("maintenance", s.maintenance, model, (), words)
+        drawing = transition_plan("maintenance", s.maintenance, model, (), words)
         found = [e for e in view.events if e.kind is EventKind.PLAN]
         found = [e for e in found if e.detail.get("reason") == ReplanReason.MAINTENANCE]
         length = int(found[-1].detail.get("length", 0) or 0) if found else 0
@@ -182,7 +183,7 @@ def plans_context(view: StationView) -> dict[str, Any]:
                 "Operations side by side are independent; this station starts one at a time."
                 if sequential
                 else "Operations side by side are independent and start together.",
-                plan_view.operation_plan(s.operation_plan, view.model.station, s.operations, words),
+                operation_plan(s.operation_plan, view.model.station, s.operations, words),
             )
         )
     if s.transition_plan is not None:
@@ -190,7 +191,7 @@ def plans_context(view: StationView) -> dict[str, Any]:
             (
                 "Transition plan" + (" (restart mode: resets)" if s.restart_mode else ""),
                 "Steps side by side touch no common variable: they may run in parallel.",
-                plan_view.transition_plan("transitions", s.transition_plan, model, (), words),
+                transition_plan("transitions", s.transition_plan, model, (), words),
             )
         )
     planning = [e for e in view.events if e.kind is EventKind.PLAN][-RECENT_PLANS:]
@@ -221,7 +222,9 @@ def planning_row(view: StationView, event: Event) -> dict[str, Any]:
 
 def variables_context(view: StationView) -> dict[str, Any]:
     station = view.model.station
-    return {"groups": plan_view.variable_groups(station, view.state.values, view.state.unavailable)}
+    return {
+        "groups": station_rows.variable_groups(station, view.state.values, view.state.unavailable)
+    }
 
 
 def set_form_context(
@@ -234,11 +237,11 @@ def set_form_context(
     """The set-a-variable form: which variable, its domain, its current value; after a
     value that would make the state forbidden, that value and reason, and the warning."""
     model, words = view.model.station.model, view.model.words
-    names = plan_view.settable_variables(model)
+    names = station_rows.settable_variables(model)
     chosen = variable or (names[0] if names else "")
     if chosen:
         known(chosen, names, "estimated or decision variable")
-    groups = plan_view.variable_groups(view.model.station, view.state.values)
+    groups = station_rows.variable_groups(view.model.station, view.state.values)
     options = [
         (
             sentence(words.resource(g.resource)) if g.resource else "The product",
@@ -246,7 +249,7 @@ def set_form_context(
         )
         for g in groups
     ]
-    domain = plan_view.domain_texts(model, chosen) if chosen else []
+    domain = station_rows.domain_texts(model, chosen) if chosen else []
     current = format_value(view.state.values[chosen]) if chosen else ""
     return {
         "set_options": [(label, names) for label, names in options if names],
