@@ -76,7 +76,10 @@ class Devices(Protocol):
         """A person did maintenance transition `transition` in the world."""
 
     def perform(self, effect: str) -> bool:
-        """A person did effect `effect` (tapped Done on a watch); False if it cannot happen now."""
+        """A person did effect `effect` (tapped Done on a watch); False if it cannot happen now.
+
+        The watch is a device (seed 001): a tap goes to the devices, not to the runner, and the
+        runner sees it as the effect in the next reading, as it sees a robot arrive."""
 
     def links(self) -> Mapping[str, LinkStatus]:
         """How each device's connection is doing, by device name."""

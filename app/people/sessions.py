@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from enum import StrEnum
 
 from itsdangerous import BadSignature, SignatureExpired, URLSafeTimedSerializer
-from sqlalchemy import delete, or_, select, update
+from sqlalchemy import delete, or_, update
 from sqlalchemy.orm import Session
 
 from app.store.tables import User, UserSession
@@ -90,17 +90,6 @@ def revoke_all(session: Session, user_id: int, why: str, now: float) -> int:
         .values(revoked_at=now, revoked_why=why)
     )
     return int(getattr(result, "rowcount", 0) or 0)
-
-
-def live_count(session: Session, user_id: int, now: float) -> int:
-    rows = session.scalars(
-        select(UserSession.id).where(
-            UserSession.user_id == user_id,
-            UserSession.revoked_at.is_(None),
-            UserSession.expires_at > now,
-        )
-    )
-    return len(list(rows))
 
 
 class ApiTokens:

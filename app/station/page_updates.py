@@ -1,4 +1,4 @@
-"""Telling the open pages what changed, by server-sent events (`app.web.events`).
+"""Telling the open pages what changed, by server-sent events (`app.web.routes.events`).
 
 The station loop announces after each committed round which areas changed ("station",
 "alarm", or an area a page registered); each browser's event stream gets the names on its

@@ -249,15 +249,3 @@ def _iso(time: float) -> str:
     from datetime import UTC, datetime
 
     return datetime.fromtimestamp(time, UTC).isoformat(timespec="milliseconds")
-
-
-def all_records(session: Session, batch: int = 5000) -> Iterator[AuditRecord]:
-    last_id = 0
-    while True:
-        query = select(AuditRecord).where(AuditRecord.id > last_id).order_by(AuditRecord.id)
-        rows = list(session.scalars(query.limit(batch)))
-        if not rows:
-            return
-        yield from rows
-        session.expunge_all()
-        last_id = rows[-1].id

@@ -9,7 +9,7 @@
 
   let offset = 0; // the station's clock minus this device's, in seconds
 
-  // the same words as app.web.alarms.relative
+  // the same words as app.web.routes.alarms.relative
   function relative(seconds) {
     if (seconds >= 0 && seconds < 45) return "just now";
     const minutes = Math.max(1, Math.floor((Math.abs(seconds) + 30) / 60));

@@ -106,7 +106,7 @@ ROUTES = [
     Route("GET", "/redoc", PUBLIC, says="redoc"),
     Route("GET", "/static/{path:path}", PUBLIC, url="/static/css/hmi.css"),
     Route("GET", "/healthz", PUBLIC, says='"ok":true'),
-    Route("GET", "/favicon.ico", PUBLIC),  # the station's icon (app.web.assets)
+    Route("GET", "/favicon.ico", PUBLIC),  # the station's icon (app.web.routes.assets)
     Route("GET", "/login", PUBLIC, says='name="password"'),
     Route("POST", "/login", PUBLIC, form={"name": "nobody"}, reached=422, says="password"),
     Route(

@@ -77,7 +77,7 @@ GROUPS = {
 PAGES = "pages"  # the GET pages' query strings, and any form route no group claims
 NOT_FUZZED = ("/events",)  # an endless stream (its access is in test_security_access.py)
 # query parameters the pages read themselves (request.query_params), not as arguments
-UNDECLARED = ("seen",)  # a live fragment's digest (app.web.engineer.live_fragment)
+UNDECLARED = ("seen",)  # a live fragment's digest (app.web.pages.live_fragment)
 BOUNDS = (Ge, Gt, Le, Lt)  # annotated_types' bounds; each holds its one number
 RECURSION_LIMIT = sys.getrecursionlimit()  # the server's, as it runs outside the tests
 
