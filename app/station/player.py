@@ -17,6 +17,7 @@ from app.station.runs import RunTracker
 from app.station.scenario import Scenario
 from hw.devices import Devices
 from hw.simulated import SimulatedWorld
+from planner.model.flat import TransitionKind
 from planner.model.station import Station
 from planner.planning.operation_planner import OperationPlanner
 from planner.planning.transition_planner import TransitionPlanner
@@ -179,7 +180,8 @@ def _operator_answers(event: Event, scenario: Scenario, now: float) -> list[tupl
     delay = scenario.operator_delay
     if event.kind is EventKind.APPROVAL and scenario.approve:
         out: list[tuple[float, Action]] = [(now + delay, Approve(step=int(event.detail["step"])))]
-        if event.detail.get("type") == "maintenance" and scenario.maintenance:
+        maintenance = event.detail.get("type") == TransitionKind.MAINTENANCE.value
+        if maintenance and scenario.maintenance:
             out.append((now + 2 * delay, MaintenanceDone(transition=event.subject)))
         return out
     if event.kind is EventKind.INSTRUCTION and scenario.maintenance:

@@ -33,7 +33,7 @@ from typing import Any
 from sqlalchemy import text
 
 from app.store import checkpoints, seals
-from app.store.audit import GENESIS, record_hash
+from app.store.audit import GENESIS, AuditKind, record_hash
 from app.store.db import Store
 from app.store.keys import StationKeys
 
@@ -180,7 +180,7 @@ def _check_seal(
 
 
 def _note_users(row: dict[str, Any], record: int, added: dict[str, int]) -> None:
-    if row["kind"] not in ("user", "audit"):
+    if row["kind"] not in (AuditKind.USER, AuditKind.AUDIT):
         return
     try:
         detail = json.loads(row["detail"])
@@ -188,9 +188,9 @@ def _note_users(row: dict[str, Any], record: int, added: dict[str, int]) -> None
         return
     if not isinstance(detail, dict):
         return
-    if row["kind"] == "user" and row["subject"] == "added":
+    if row["kind"] == AuditKind.USER and row["subject"] == "added":
         added[str(detail.get("name", ""))] = record
-    elif row["kind"] == "audit" and row["subject"] == "sealed":
+    elif row["kind"] == AuditKind.AUDIT and row["subject"] == "sealed":
         for name in detail.get("users", ()):
             added[str(name)] = record
 
