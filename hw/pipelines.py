@@ -195,9 +195,6 @@ class SetPayload:
     centre_of_gravity: tuple[float, float, float]
 
 
-RobotCommand = MoveJ | SetTcp | SetPayload
-
-
 @dataclass(frozen=True)
 class Tool:
     """What a robot carries: its TCP (x, y, z, rx, ry, rz) and its payload."""

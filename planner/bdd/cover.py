@@ -14,13 +14,6 @@ Cube = tuple[tuple[str, bool], ...]
 """Literals over BDD bits, outermost bit first."""
 
 
-def cover_expr(sym: SymbolicModel, lower: Function, upper: Function) -> Expr:
-    """A short expression true on all of `lower` and nowhere outside `upper`."""
-    found = Cover(sym).expr(lower, upper)
-    assert found is not None  # no limit
-    return found
-
-
 class Cover:
     """Covers of intervals of BDDs as expressions, sharing their work between calls.
 

@@ -390,10 +390,6 @@ def resolve_assign(syntax: AssignSyntax, scope: Scope) -> Assign:
     return Assign(target.text, value=scope.value_of(target.text, value))
 
 
-def parse_assign(text: str, scope: Scope) -> Assign:
-    return resolve_assign(parse_assign_syntax(text), scope)
-
-
 _PLACEHOLDER = re.compile(r"\{([A-Za-z_][A-Za-z0-9_]*)\}")
 
 
