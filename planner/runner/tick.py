@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, TypeVar
 
 from planner.model.expressions import Value
 from planner.model.semantics import State
+from planner.runner.actions import Action, Reply
 from planner.runner.state import RunnerState
 from planner.runner.tick_io import Event
 from planner.runner.vocabulary import (
@@ -63,6 +64,11 @@ class Tick:
         self, kind: EventKind, subject: str, millis: float | None = None, **detail: object
     ) -> None:
         self.events.append(Event(self.now, kind, subject, detail, millis))
+
+    def refuse(self, action: Action, subject: str, why: str) -> Reply:
+        """Refuse a person's action: a `refused` event about `subject`, and the reply."""
+        self.emit(EventKind.REFUSED, subject, user=action.user, why=why)
+        return Reply.refuse(action, subject, why)
 
     def current(self) -> State:
         """The live values as a state of the model."""
