@@ -36,7 +36,7 @@ from planner.runner.actions import (
     SetEstimated,
     StartIntention,
 )
-from planner.runner.queries import QueryObserver
+from planner.runner.answers import QueryObserver
 from planner.runner.runner import Runner, run_tick
 from planner.runner.state import OperationPlan, RunnerState, TransitionPlan
 from planner.runner.tick_io import Event, Inputs, RunnerConfig, TickResult

@@ -29,8 +29,7 @@ from planner.runner import (
     transitions,
 )
 from planner.runner.actions import Reply
-from planner.runner.answers import InProcess, Pending, Planning
-from planner.runner.queries import QueryObserver
+from planner.runner.answers import InProcess, Pending, QueryAnswerer, QueryObserver
 from planner.runner.state import RunnerState
 from planner.runner.station_index import StationIndex
 from planner.runner.tick import Tick
@@ -87,7 +86,7 @@ class Runner:
         config: RunnerConfig | None = None,
         stopwatch: Stopwatch | None = None,
         observer: QueryObserver | None = None,
-        planning: Planning | None = None,
+        planning: QueryAnswerer | None = None,
     ) -> None:
         self.station = station
         self.model = station.model
@@ -98,7 +97,7 @@ class Runner:
         self.index = StationIndex(station, self.semantics)
         self.stopwatch = stopwatch
         self.observer = observer
-        self.planning: Planning = planning or InProcess(
+        self.planning: QueryAnswerer = planning or InProcess(
             transition_planner, operation_planner, stopwatch
         )
         self._bad: dict[State, bool] = {}
