@@ -26,6 +26,7 @@ from planner.runner import (
     observing,
     operations,
     people,
+    restart,
     transitions,
 )
 from planner.runner.actions import Reply
@@ -53,7 +54,10 @@ def run_tick(tick: Tick, inputs: Inputs) -> list[Reply]:
         tick.state.announced = ()
         intentions.start_and_finish(tick)  # 4.
         attempt(tick, operations.follow_operation_plan)  # 5. the operation planner
-        attempt(tick, transitions.follow_transition_plan)  # 6. the transition planner
+        if tick.state.restart_mode:
+            attempt(tick, restart.follow_reset_plan)  # 6. in restart mode: the resets
+        else:
+            attempt(tick, transitions.follow_transition_plan)  # 6. the transition planner
         attempt(tick, maintenance.follow_maintenance_plan)  # after errors: people's steps
     effects.monitor_effects(tick)  # 7. effect time-outs
     if background.due(tick):
