@@ -2,7 +2,7 @@
 
 The typed `Expr` every planner, the runner and the pages work on, with its constructors
 and formatting, and the `Assign` of an action; text becomes these in
-`planner.model.expression_text`.
+`planner.model.expression_syntax` (parsed) and `planner.model.expression_text` (resolved).
 
 Nesting is bounded (`MAX_NESTING`, docs/models.md), so that a hostile or generated model is
 refused with a located error instead of overflowing the stack of whatever walks it later.

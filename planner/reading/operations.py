@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import yaml
 
-from planner.model.expression_text import Scope, is_name, substitute
+from planner.model.expression_syntax import is_name, substitute
+from planner.model.expression_text import Scope
 from planner.model.expressions import TRUE, Assign, Expr, SameValue, conjunction
 from planner.model.flat import TransitionKind, Variable
 from planner.model.station import Intention, Operation, value_is

@@ -15,15 +15,13 @@ from typing import TypeVar
 
 import yaml
 
-from planner.model.expression_text import (
-    Scope,
+from planner.model.expression_syntax import (
     is_name,
     parse_assign_syntax,
     parse_syntax,
-    resolve,
-    resolve_assign,
     substitute,
 )
+from planner.model.expression_text import Scope, resolve, resolve_assign
 from planner.model.expressions import Assign, Expr, ExpressionError, Value
 from planner.model.flat import (
     SourceLocation,
