@@ -1,6 +1,6 @@
 """Readable predicates from BDDs: irredundant sums of products over the model's variables.
 
-Used for the supervisor guards that `sp check` prints (planner/bdd/synthesis.py).
+Used for the supervisor guards that `sp check` prints (`planner.bdd.guards`).
 """
 
 from __future__ import annotations
