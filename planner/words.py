@@ -35,8 +35,6 @@ from planner.model.flat import Variable
 from planner.model.station import Station
 from planner.reading.display import humanised
 
-# ---- sentences ------------------------------------------------------------------------------
-
 _GROUP = re.compile(r"\s*\(([^()]*)\)")
 _REFERENCE = re.compile(
     r"""
@@ -78,8 +76,6 @@ def sentence(text: str) -> str:
     text = clean(text)
     return text[:1].upper() + text[1:]
 
-
-# ---- names ----------------------------------------------------------------------------------
 
 _NAME = re.compile(r"(?<![\w.])[A-Za-z_]\w*(?:\.[A-Za-z_]\w*)*(?!\w)")
 _BOOL_WORDS = {True: "yes", False: "no"}

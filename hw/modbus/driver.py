@@ -104,7 +104,10 @@ class _Trouble(Exception):
 
 
 class ModbusDriver:
-    """One Modbus TCP device, polled every `poll_period` seconds (see the module)."""
+    """One Modbus TCP device, polled every `poll_period` seconds (see the module).
+
+    The public methods are the station's side: any thread, never blocking on the device.
+    The underscored ones run on the shared loop."""
 
     def __init__(
         self,
@@ -141,8 +144,6 @@ class ModbusDriver:
         self._wake: asyncio.Future[None] | None = None
         self._sent: tuple[bytes, int] = (b"", 0)  # the request's transaction id, function
         self._malformed = ""
-
-    # -- the station's side (any thread, never blocks on the device) -----------------------------
 
     def start(self) -> None:
         if self._loop is not None:
@@ -217,8 +218,6 @@ class ModbusDriver:
                 "the device answers but its logic does not run"
             )
         return ""
-
-    # -- the loop's side -------------------------------------------------------------------------
 
     async def _begin(self) -> None:
         self._task = asyncio.get_running_loop().create_task(self._run(), name=self.name)

@@ -129,8 +129,6 @@ class SymbolicModel:
             raise ValueError("the saved variable order does not match this model's bits")
         cudd.reorder(self.bdd, {name: level for level, name in enumerate(order)})
 
-    # -- encoding ------------------------------------------------------------------------------
-
     def code(self, variable: str, value: Value) -> dict[str, bool]:
         """The bit assignment that encodes `variable == value`."""
         domain = self.model.variable(variable).domain
@@ -262,8 +260,6 @@ class SymbolicModel:
             for a, b in zip(self.bits[action.target], self.bits[action.source], strict=True)
         }
 
-    # -- images --------------------------------------------------------------------------------
-
     def image(self, t: SymbolicTransition, states: Function) -> Function:
         """States reached by taking `t` from those of `states` where its guard holds."""
         if t.post is not None:
@@ -279,8 +275,6 @@ class SymbolicModel:
         if not t.substitution:
             return states & t.guard
         return self.bdd.let(dict(t.substitution), states) & t.guard
-
-    # -- concrete states -----------------------------------------------------------------------
 
     def state(self, values: State) -> Function:
         """The single-state set of a concrete state tuple."""

@@ -31,9 +31,6 @@ class ExpressionError(Exception):
         self.offset = offset
 
 
-# ---- typed expressions ----------------------------------------------------------------------
-
-
 @dataclass(frozen=True, slots=True)
 class Const:
     value: bool
@@ -232,9 +229,6 @@ def _format(expr: Expr, parent: int) -> str:
             text = f"{_format(left, 2)} -> {_format(right, 1)}"
             return f"({text})" if parent > 1 else text
     raise TypeError(expr)
-
-
-# ---- actions --------------------------------------------------------------------------------
 
 
 @dataclass(frozen=True, slots=True)

@@ -129,8 +129,6 @@ class SymbolicPlanner:
         probe(sym, start, usable, automatic, self.good, PROBE_LAYERS)
         return _lookups(sym) - before
 
-    # -- the query's sets ------------------------------------------------------------------------
-
     def usable(self, query: PlanQuery) -> tuple[SymbolicTransition, ...]:
         key = (query.disabled, query.maintenance)
         found = self._usable.get(key)
@@ -209,8 +207,6 @@ class SymbolicPlanner:
                 self._predicates.clear()
             self._predicates[expr] = predicate
         return predicate(state)
-
-    # -- planning ------------------------------------------------------------------------------
 
     def plan(self, query: PlanQuery) -> PlanResult:
         self.tune()
@@ -434,8 +430,6 @@ class SymbolicPlanner:
             symmetries=swappers,
         )
 
-    # -- symmetry ------------------------------------------------------------------------------
-
     @property
     def symmetries(self) -> tuple[Symmetry, ...]:
         if self._symmetries is None:
@@ -488,8 +482,6 @@ class SymbolicPlanner:
                 self._swapper_cache.clear()
             self._swapper_cache[key] = swapper
         return swapper
-
-    # -- results -------------------------------------------------------------------------------
 
     def _statistics(self, parts: Sequence[_Part]) -> dict[str, float]:
         out: dict[str, float] = {

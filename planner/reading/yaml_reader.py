@@ -72,8 +72,6 @@ class Reader:
         self.file = file
         self.diagnostics: list[Diagnostic] = []
 
-    # -- locations -----------------------------------------------------------------------------
-
     def at(self, node: yaml.Node) -> SourceLocation:
         mark = node.start_mark
         return SourceLocation(self.file, mark.line + 1, mark.column + 1)
@@ -117,8 +115,6 @@ class Reader:
     def raise_if_errors(self) -> None:
         if self.diagnostics:
             raise ModelError(self.diagnostics)
-
-    # -- structure -----------------------------------------------------------------------------
 
     def compose(self) -> yaml.Node | None:
         self.check_nesting()
@@ -227,8 +223,6 @@ class Reader:
                 )
             else:
                 seen[name] = node
-
-    # -- expressions ---------------------------------------------------------------------------
 
     def template(
         self, node: yaml.Node, what: str, values: Mapping[str, str] | None

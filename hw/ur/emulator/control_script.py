@@ -75,8 +75,6 @@ class ControlScript:
         self._progress(ctrl, -1)
         self._out_int(ctrl, 0, READY)
 
-    # -- the main loop, one controller cycle ------------------------------------------------------
-
     def cycle(self, ctrl: Controller, now: float) -> str | None:
         """Runs one cycle; None to go on, else why the program ended ("" when asked to)."""
         if self.watchdog > 0:
@@ -174,8 +172,6 @@ class ControlScript:
             self.waiting = "stop"
         return None
 
-    # -- motions in progress --------------------------------------------------------------------
-
     def _finished(self, ctrl: Controller, kind: str) -> bool:
         if kind == "stop":
             return ctrl.arm.steady
@@ -219,8 +215,6 @@ class ControlScript:
     @property
     def move_in_progress(self) -> bool:
         return self.move is not None
-
-    # -- registers ------------------------------------------------------------------------------
 
     def _progress(self, ctrl: Controller, value: int) -> None:
         self.writes = (self.writes + 1) % 128

@@ -60,8 +60,6 @@ class Emulator:
     def silent(self) -> bool:
         return self.network == "silent"
 
-    # -- listening --------------------------------------------------------------------------------
-
     async def listen(self) -> None:
         sessions = {"rtde": self._rtde, "dashboard": self._dashboard, "script": self._script}
         for name, serve in sessions.items():
@@ -99,8 +97,6 @@ class Emulator:
         for name in self.connections.values():
             counts[name] += 1
         return counts
-
-    # -- sessions ---------------------------------------------------------------------------------
 
     async def _rtde(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
         session = RtdeSession(self, writer)
@@ -146,8 +142,6 @@ class Emulator:
     def recipes_changed(self) -> None:
         names = {n for s in self.sessions if s.started and s.output for n in s.output.names}
         self.wanted = sorted(names)
-
-    # -- the controller cycle ---------------------------------------------------------------------
 
     def busy(self) -> bool:
         c = self.controller

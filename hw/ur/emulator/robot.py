@@ -87,8 +87,6 @@ class Controller:
     unstepped: float = 0.0
     """Seconds the arm has not yet been stepped: it moves in whole cycles only."""
 
-    # -- the robot's life cycle -----------------------------------------------------------------
-
     def power_on(self, now: float) -> None:
         if self.robot_mode == RobotMode.POWER_OFF and not self.pending:
             self.robot_mode = RobotMode.POWER_ON
@@ -123,8 +121,6 @@ class Controller:
             return False
         self.safety_mode = SafetyMode.NORMAL
         return True
-
-    # -- the program ----------------------------------------------------------------------------
 
     def load_program(self, text: str) -> None:
         """A program arrived on the script port: it replaces whatever runs."""
@@ -165,8 +161,6 @@ class Controller:
         if error:
             self.script_error = error
 
-    # -- faults and people ----------------------------------------------------------------------
-
     def stall(self, on: bool) -> None:
         self.stalled = on
         if not on and self.script is not None:
@@ -185,8 +179,6 @@ class Controller:
         self.arm.q = [float(q) for q in joints]
         self.arm.hold()
 
-    # -- registers ------------------------------------------------------------------------------
-
     def write_inputs(self, values: Mapping[str, Any], now: float) -> None:
         regs = self.registers
         for name, value in values.items():
@@ -198,8 +190,6 @@ class Controller:
                 regs.double_in[int(name.rsplit("_", 1)[1])] = float(value)
             else:
                 self.inputs[name] = value
-
-    # -- the controller cycle -------------------------------------------------------------------
 
     def tick(self, now: float) -> None:
         dt = now - self.clock if self.clock else 0.0
@@ -227,8 +217,6 @@ class Controller:
         while self.unstepped >= period * (1 - 1e-6):
             self.arm.step(period)
             self.unstepped = max(self.unstepped - period, 0.0)
-
-    # -- what RTDE reads ------------------------------------------------------------------------
 
     @property
     def timestamp(self) -> float:

@@ -199,9 +199,6 @@ def split(buffer: bytearray) -> list[Message]:
     return messages
 
 
-# -- requests and answers ------------------------------------------------------------------------
-
-
 def protocol_version(payload: bytes) -> int:
     if len(payload) != 2:
         raise WireError("a protocol version request carries one uint16")
@@ -246,9 +243,6 @@ def success_answer(kind: int, ok: bool = True) -> bytes:
 
 def output_types(names: Sequence[str]) -> list[str]:
     return [OUTPUTS.get(name, NOT_FOUND) for name in names]
-
-
-# -- recipes -------------------------------------------------------------------------------------
 
 
 @dataclass(frozen=True)
