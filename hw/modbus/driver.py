@@ -1,5 +1,9 @@
 """The station's driver for one Modbus TCP device: polls points, writes level commands.
 
+Size: one class, one concept (a device's link: poll, write, reconnect, judge the answers);
+the station's side and the loop's side share its state, and apart each would hold half of
+one life cycle.
+
 Life cycle: `ModbusDriver(...)`, `start()`, then from the station's tick, none of which
 blocks: `latest()` (the last good reading), `write(point, value)` (a level: the newest value
 per point wins), `status()` and `available`; finally `close()`, which leaves no thread and

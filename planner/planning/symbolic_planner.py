@@ -1,5 +1,8 @@
 """The `bdd` engine: a query planned part by part, each part a breadth-first search.
 
+Size: one class, one concept (the symbolic search of a query, part by part); splitting it
+would scatter one algorithm.
+
 `planner.planning.relevance` says which variables a query can matter to and which parts of the
 station are independent for it; this module turns each active part into a `search.Problem`
 over its own variables, orders the parts' minimal plans so that their concatenation is a

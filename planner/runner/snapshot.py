@@ -1,5 +1,8 @@
 """A runner's live state as JSON and back (DESIGN.md section 4).
 
+Size: one format, written and read.  Most of it is the loader's checks, one per stored
+field, kept beside the writer so that a field changed in one is changed in the other.
+
 The station server saves `dump(state)` after every tick and, after a `kill -9`, carries on
 from `load(runner, saved, now)`.  Expressions are stored as text and parsed against the
 runner's model, so a snapshot is checked against the model it is restored into: a name or a
