@@ -20,7 +20,7 @@ from enum import IntEnum
 from typing import Any
 
 from hw.ur.emulator.arm import Arm
-from hw.ur.emulator.control_script import ControlScript, parse_program
+from hw.ur.emulator.control_script import ControlScript, Registers, parse_program
 from hw.ur.emulator.rtde_wire import OUTPUTS, VECTOR_SIZES
 
 
@@ -50,18 +50,6 @@ CYCLE = 0.008
 """Seconds per controller cycle of a CB3 (125 Hz); an e-series (version 5) runs at 500 Hz."""
 LOST = 0.1
 """Seconds of motion at most per tick: time the emulator did not run beyond this is lost."""
-
-
-@dataclass
-class Registers:
-    """The general-purpose RTDE registers, lower and upper range (0..47)."""
-
-    int_in: list[int] = field(default_factory=lambda: [0] * 48)
-    double_in: list[float] = field(default_factory=lambda: [0.0] * 48)
-    int_out: list[int] = field(default_factory=lambda: [0] * 48)
-    double_out: list[float] = field(default_factory=lambda: [0.0] * 48)
-    updated: dict[int, float] = field(default_factory=dict)
-    """When each input int register was last written (for the RTDE watchdog)."""
 
 
 @dataclass
