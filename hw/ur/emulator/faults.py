@@ -14,7 +14,7 @@ from hw.ur.emulator.robot import Controller, RobotMode, RuntimeState, SafetyMode
 
 
 class ControlledEmulator(Protocol):
-    """What the operations use of the emulator they act on (`controller.Emulator` is one)."""
+    """What the operations use of the emulator they act on (`server.Emulator` is one)."""
 
     @property
     def controller(self) -> Controller: ...

@@ -24,7 +24,7 @@ MAX_BUFFERED = 1 << 16
 
 
 class RtdeHost(Protocol):
-    """What a connection uses of the emulator that accepted it (`controller.Emulator` is one):
+    """What a connection uses of the emulator that accepted it (`server.Emulator` is one):
     the controller, its cycle rate, the network fault, who owns which input variable."""
 
     @property

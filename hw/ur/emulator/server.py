@@ -1,6 +1,6 @@
 """An emulated UR10 controller (CB3, PolyScope 3.15.7) as its own process.
 
-    python -m hw.ur.emulator.controller --host 127.0.0.2 [--control-port 30100]
+    python -m hw.ur.emulator.server --host 127.0.0.2 [--control-port 30100]
         [--joints q1,...,q6] [--version 3.15.7]
 
 It listens on the client's fixed ports on `--host`: RTDE 30004, dashboard 29999, script 30003,
@@ -189,9 +189,7 @@ class Emulator:
 
 
 def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(
-        prog="python -m hw.ur.emulator.controller", description=__doc__
-    )
+    parser = argparse.ArgumentParser(prog="python -m hw.ur.emulator.server", description=__doc__)
     parser.add_argument("--host", default="127.0.0.2")
     parser.add_argument("--control-port", type=int, default=0)
     parser.add_argument("--joints", default=",".join(str(q) for q in HOME))
