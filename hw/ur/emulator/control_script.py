@@ -51,7 +51,7 @@ class Registers:
 
 
 class ScriptHost(Protocol):
-    """What the script uses of the controller that runs it (`robot.Controller` is one): its
+    """What the script uses of the controller that runs it (`controller.Controller` is one): its
     registers, arm, clock and version, the tool and payload it sets, the protective stop."""
 
     tcp: tuple[float, ...]

@@ -10,7 +10,7 @@ import math
 from collections.abc import Awaitable, Callable
 from typing import Any, Protocol
 
-from hw.ur.emulator.robot import Controller, RobotMode, RuntimeState, SafetyMode
+from hw.ur.emulator.controller import Controller, RobotMode, RuntimeState, SafetyMode
 
 
 class ControlledEmulator(Protocol):

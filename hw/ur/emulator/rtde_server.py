@@ -15,7 +15,7 @@ from collections.abc import Sequence
 from typing import Any, Protocol
 
 from hw.ur.emulator import rtde_wire as wire
-from hw.ur.emulator.robot import Controller
+from hw.ur.emulator.controller import Controller
 
 log = logging.getLogger(__name__)
 

@@ -28,8 +28,8 @@ from hw.emulator_kit.control import serve_control
 from hw.emulator_kit.process import exit_with_parent
 from hw.ur.emulator import dashboard
 from hw.ur.emulator.arm import Arm
+from hw.ur.emulator.controller import Controller
 from hw.ur.emulator.faults import handle
-from hw.ur.emulator.robot import Controller
 from hw.ur.emulator.rtde_server import RtdeSession
 from hw.ur.emulator.script_server import Programs
 

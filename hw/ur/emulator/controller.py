@@ -1,8 +1,9 @@
-"""The emulated controller's world: modes, safety, the program, registers and the arm.
+"""The emulated controller itself: modes, safety, the program, registers and the arm.
 
-`Controller` is advanced by `tick(now)` from one loop (the emulator's 125 Hz controller
-cycle); the servers call its operations (`power_on`, `load_program`, `write_inputs` ...) and
-read `outputs(names)`.  Time comes in as `now` (monotonic seconds); nothing here does I/O.
+`Controller` is advanced by `tick(now)` from one loop (the 125 Hz controller cycle of
+`hw.ur.emulator.server`, the process around it); the servers call its operations
+(`power_on`, `load_program`, `write_inputs` ...) and read `outputs(names)`.  Time comes in as
+`now` (monotonic seconds); nothing here does I/O.
 
 Life cycle of the robot, as a CB3 shows it: POWER_OFF --`power on`--> POWER_ON --(delay)-->
 IDLE --`brake release`--> RUNNING (after a delay).  A program (the uploaded ur_rtde control
