@@ -24,6 +24,3 @@ class LinkStatus:
     last_data: float | None = None
     error: str = ""
     restarts: int = 0
-
-
-DOWN = LinkStatus(connected=False, error="not started")

@@ -51,8 +51,6 @@ class Pipe(Generic[A, B]):
         return Pipe(f"{self.name} | {after.name}", lambda reading: after(self(reading)))
 
 
-# -- measured: robots ----------------------------------------------------------------------------
-
 Joints = tuple[float, ...]
 
 
@@ -141,9 +139,6 @@ def track_move(
     return before
 
 
-# -- measured: registers ---------------------------------------------------------------------------
-
-
 def bit(index: int) -> Pipe[int, bool]:
     """Bit `index` of a 16-bit register."""
     if not 0 <= index < 16:
@@ -174,9 +169,6 @@ def enumeration(values: Mapping[int, Value]) -> Pipe[int, Value]:
     return Pipe(f"enumeration {{{shown}}}", step)
 
 
-# -- commanded: robot programs ---------------------------------------------------------------------
-
-
 @dataclass(frozen=True)
 class MoveJ:
     joints: Joints
@@ -193,9 +185,6 @@ class SetTcp:
 class SetPayload:
     mass: float  # kg
     centre_of_gravity: tuple[float, float, float]
-
-
-RobotCommand = MoveJ | SetTcp | SetPayload
 
 
 @dataclass(frozen=True)
@@ -224,9 +213,6 @@ class RobotPrograms:
             raise KeyError(f"no tool '{tcp}'; known: {', '.join(sorted(self.tools))}")
         tool = self.tools[tcp]
         return SetTcp(tool.tcp), SetPayload(tool.mass, tool.centre_of_gravity)
-
-
-# -- timing ----------------------------------------------------------------------------------------
 
 
 @dataclass

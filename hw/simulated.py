@@ -50,12 +50,7 @@ class SimulatedWorld:
         self.values: dict[str, Value] = {v.name: v.initial for v in self.model.variables}
         self.values.update(start or {})
         self.observed: dict[str, Value] = {}  # product states changed by hand, to report once
-        self.owner: dict[str, str] = {}
-        self.resource_variables: dict[str, frozenset[str]] = {}
-        for resource in station.resources:
-            self.resource_variables[resource.name] = frozenset(resource.variables)
-            for name in resource.transitions:
-                self.owner[name] = resource.name
+        self.resource_variables = {r.name: frozenset(r.variables) for r in station.resources}
         self.disconnected: set[str] = set()
         self.blocked: set[str] = set()
         self.replaced: dict[str, tuple[str, int]] = {}
@@ -71,7 +66,7 @@ class SimulatedWorld:
     def delay(self, effect: str) -> float:
         if effect in self.delays:
             return self.delays[effect]
-        owner = self.owner.get(effect, "")
+        owner = self.station.owner_of(effect)
         return self.delays.get(owner, self.default_delay)
 
     def inject(self, fault: Fault) -> None:
@@ -200,7 +195,7 @@ class SimulatedWorld:
             due = None
             for effect in self.effects:
                 name = effect.name
-                frozen = self.owner.get(name) in self.disconnected
+                frozen = self.station.owner_of(name) in self.disconnected
                 if not effect.guard(state) or frozen or name in self.blocked:
                     self.pending.pop(name, None)
                     continue

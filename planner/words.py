@@ -36,8 +36,6 @@ from planner.model.station import Station
 from planner.reading.display import humanised
 from planner.runner.vocabulary import ReplanReason
 
-# ---- sentences ------------------------------------------------------------------------------
-
 _GROUP = re.compile(r"\s*\(([^()]*)\)")
 _REFERENCE = re.compile(
     r"""
@@ -80,8 +78,6 @@ def sentence(text: str) -> str:
     return text[:1].upper() + text[1:]
 
 
-# ---- names ----------------------------------------------------------------------------------
-
 _NAME = re.compile(r"(?<![\w.])[A-Za-z_]\w*(?:\.[A-Za-z_]\w*)*(?!\w)")
 _BOOL_WORDS = {True: "yes", False: "no"}
 
@@ -99,6 +95,7 @@ class Wording:
 
     def __init__(self, station: Station) -> None:
         model = station.model
+        self._owner_of = station.owner_of
         self._station = _first(station.display) or humanised(station.name)
         self._resources = {r.name: _first(r.display, r.description) for r in station.resources}
         self._variables: dict[str, Variable] = {v.name: v for v in model.variables}
@@ -115,10 +112,6 @@ class Wording:
         self._intentions = {i.name: _first(i.display, i.description) for i in station.intentions}
         self._abilities = {a.qualified: _first(a.display, a.description) for a in station.abilities}
         starts = {a.qualified: a for a in station.abilities}
-        self._owners: dict[str, str] = {}
-        for resource in station.resources:
-            for name in (*resource.transitions, *resource.variables):
-                self._owners[name] = resource.name
         self._transitions: dict[str, str] = {}
         for t in model.transitions:
             ability = starts.get(t.name)
@@ -213,12 +206,12 @@ class Wording:
         words = self._transitions.get(name)
         if words:
             return words
-        owner = self._owners.get(name)
+        owner = self._owner_of(name)
         return humanised(name[len(owner) + 1 :] if owner else name)
 
     def owner(self, name: str) -> str:
         """The words of the resource a transition or variable belongs to; "" if station-wide."""
-        owner = self._owners.get(name)
+        owner = self._owner_of(name)
         return self.resource(owner) if owner else ""
 
     def step(self, name: str) -> str:

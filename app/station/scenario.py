@@ -182,81 +182,12 @@ def _read(data: Any, file: str, station: Station) -> Scenario:
     if not isinstance(data, dict):
         raise _Problem((), f"a scenario is a mapping with keys {', '.join(_KEYS)}")
     _known((), "scenario", data, _KEYS)
-    model = station.model
-    start: dict[str, Value] = {}
-    for name, value in _mapping(data.get("start"), ("start",), "start").items():
-        if name not in model.variable_index:
-            raise _Problem(("start", name), f"unknown variable '{name}'")
-        domain = model.variable(name)
-        if value not in domain.domain:
-            raise _Problem(("start", name), f"{value!r} is not in {domain.describe_domain()}")
-        start[name] = value
-    intentions = data.get("intentions")
-    if intentions is not None:
-        known = {i.name for i in station.intentions}
-        for k, name in enumerate(_sequence(intentions, ("intentions",), "intentions")):
-            if name not in known:
-                raise _Problem(("intentions", k), f"unknown intention '{name}'")
-        intentions = tuple(intentions)
-    raw_config = _mapping(data.get("config"), ("config",), "config")
-    _known(("config",), "config", raw_config, _CONFIG_KEYS)
-    transitions = set(model.transition_index)
-    timeouts = _mapping(raw_config.get("effect_timeouts"), ("config", "effect_timeouts"), "it")
-    for effect, seconds in timeouts.items():
-        if effect not in transitions:
-            raise _Problem(("config", "effect_timeouts", effect), f"unknown transition '{effect}'")
-        if seconds is not None:
-            _number(seconds, ("config", "effect_timeouts", effect))
-    numbers = ("effect_timeout", "heartbeat_timeout", "reminder", "recheck_period")
-    for key in (*numbers, "retries", "max_steps"):
-        if key in raw_config:
-            _number(raw_config[key], ("config", key), integer=key in ("retries", "max_steps"))
-    config = RunnerConfig(
-        auto_intentions=frozenset(intentions) if intentions is not None else None,
-        **{k: v for k, v in raw_config.items()},
-    )
-    delays = dict(_mapping(data.get("delays"), ("delays",), "delays"))
-    for name, seconds in delays.items():
-        _number(seconds, ("delays", name))
-        if (
-            name != "default"
-            and name not in transitions
-            and name not in {r.name for r in station.resources}
-        ):
-            raise _Problem(("delays", name), f"'{name}' is neither a resource nor an effect")
-    default_delay = float(delays.pop("default", 1.0))
-    scope = scope_for(model.domains, station.predicates)
-    faults = []
-    for k, entry in enumerate(_sequence(data.get("faults"), ("faults",), "faults")):
-        where: Path = ("faults", k)
-        if not isinstance(entry, dict):
-            raise _Problem(where, f"a fault is a mapping with keys {', '.join(_FAULT_KEYS)}")
-        _known(where, "fault", entry, _FAULT_KEYS)
-        kind = entry.get("kind")
-        if kind not in FAULTS:
-            raise _Problem(
-                (*where, "kind"), f"kind must be one of {', '.join(FAULTS)}, not {kind!r}"
-            )
-        when = _when(entry, where, scope)
-        fault = Fault(
-            FaultKind(kind),
-            resource=str(entry.get("resource", "")),
-            effect=str(entry.get("effect", "")),
-            instead=str(entry.get("instead", "")),
-            count=int(_number(entry.get("count", 1), (*where, "count"), integer=True)),
-            values=dict(_mapping(entry.get("values"), (*where, "values"), "values")),
-        )
-        if fault.resource and fault.resource not in {r.name for r in station.resources}:
-            raise _Problem((*where, "resource"), f"unknown resource '{fault.resource}'")
-        for key, name in (("effect", fault.effect), ("instead", fault.instead)):
-            if name and name not in transitions:
-                raise _Problem((*where, key), f"unknown transition '{name}'")
-        for name in fault.values:
-            if name not in model.variable_index:
-                raise _Problem((*where, "values", name), f"unknown variable '{name}'")
-        text = ", ".join(f"{key}={entry[key]}" for key in _FAULT_KEYS[2:] if key in entry)
-        at = _number(entry["at"], (*where, "at")) if "at" in entry else None
-        faults.append(ScheduledFault(fault, at, when, text))
+    start = _read_start(data.get("start"), station)
+    intentions = _read_intentions(data.get("intentions"), station)
+    config = _read_config(data.get("config"), station, intentions)
+    delays, default_delay = _read_delays(data.get("delays"), station)
+    scope = scope_for(station.model.domains, station.predicates)
+    faults = _read_faults(data.get("faults"), station, scope)
     actions = tuple(
         _read_action(("actions", k), entry, scope)
         for k, entry in enumerate(_sequence(data.get("actions"), ("actions",), "actions"))
@@ -273,7 +204,7 @@ def _read(data: Any, file: str, station: Station) -> Scenario:
         config=config,
         delays=delays,
         default_delay=default_delay,
-        faults=tuple(faults),
+        faults=faults,
         actions=actions,
         operator_delay=_number(operator.get("delay", 2.0), ("operator", "delay")),
         approve=bool(operator.get("approve", True)),
@@ -283,6 +214,104 @@ def _read(data: Any, file: str, station: Station) -> Scenario:
         planning_delay=_number(planning.get("delay", 0.0), ("planning", "delay")),
         planning_budget=_number(planning.get("budget", 10.0), ("planning", "budget")),
     )
+
+
+def _read_start(raw: Any, station: Station) -> dict[str, Value]:
+    """`start`: values that replace the model's initial ones."""
+    model = station.model
+    start: dict[str, Value] = {}
+    for name, value in _mapping(raw, ("start",), "start").items():
+        if name not in model.variable_index:
+            raise _Problem(("start", name), f"unknown variable '{name}'")
+        domain = model.variable(name)
+        if value not in domain.domain:
+            raise _Problem(("start", name), f"{value!r} is not in {domain.describe_domain()}")
+        start[name] = value
+    return start
+
+
+def _read_intentions(raw: Any, station: Station) -> tuple[str, ...] | None:
+    """`intentions`: the ones that start by themselves (None: all of them)."""
+    if raw is None:
+        return None
+    known = {i.name for i in station.intentions}
+    for k, name in enumerate(_sequence(raw, ("intentions",), "intentions")):
+        if name not in known:
+            raise _Problem(("intentions", k), f"unknown intention '{name}'")
+    return tuple(raw)
+
+
+def _read_config(raw: Any, station: Station, intentions: tuple[str, ...] | None) -> RunnerConfig:
+    """`config`: the runner's settings, the effects' own time-outs among them."""
+    config = _mapping(raw, ("config",), "config")
+    _known(("config",), "config", config, _CONFIG_KEYS)
+    transitions = station.model.transition_index
+    timeouts = _mapping(config.get("effect_timeouts"), ("config", "effect_timeouts"), "it")
+    for effect, seconds in timeouts.items():
+        if effect not in transitions:
+            raise _Problem(("config", "effect_timeouts", effect), f"unknown transition '{effect}'")
+        if seconds is not None:
+            _number(seconds, ("config", "effect_timeouts", effect))
+    numbers = ("effect_timeout", "heartbeat_timeout", "reminder", "recheck_period")
+    for key in (*numbers, "retries", "max_steps"):
+        if key in config:
+            _number(config[key], ("config", key), integer=key in ("retries", "max_steps"))
+    return RunnerConfig(
+        auto_intentions=frozenset(intentions) if intentions is not None else None,
+        **{k: v for k, v in config.items()},
+    )
+
+
+def _read_delays(raw: Any, station: Station) -> tuple[dict[str, float], float]:
+    """`delays`: seconds per resource or effect, and the `default` for the others."""
+    delays = dict(_mapping(raw, ("delays",), "delays"))
+    resources = {r.name for r in station.resources}
+    for name, seconds in delays.items():
+        _number(seconds, ("delays", name))
+        if (
+            name != "default"
+            and name not in station.model.transition_index
+            and name not in resources
+        ):
+            raise _Problem(("delays", name), f"'{name}' is neither a resource nor an effect")
+    return delays, float(delays.pop("default", 1.0))
+
+
+def _read_faults(raw: Any, station: Station, scope: Any) -> tuple[ScheduledFault, ...]:
+    return tuple(
+        _read_fault(("faults", k), entry, station, scope)
+        for k, entry in enumerate(_sequence(raw, ("faults",), "faults"))
+    )
+
+
+def _read_fault(where: Path, entry: Any, station: Station, scope: Any) -> ScheduledFault:
+    """One entry of `faults`: what goes wrong, and when (`at` a time or `when` a condition)."""
+    if not isinstance(entry, dict):
+        raise _Problem(where, f"a fault is a mapping with keys {', '.join(_FAULT_KEYS)}")
+    _known(where, "fault", entry, _FAULT_KEYS)
+    kind = entry.get("kind")
+    if kind not in FAULTS:
+        raise _Problem((*where, "kind"), f"kind must be one of {', '.join(FAULTS)}, not {kind!r}")
+    when = _when(entry, where, scope)
+    fault = Fault(
+        FaultKind(kind),
+        resource=str(entry.get("resource", "")),
+        effect=str(entry.get("effect", "")),
+        instead=str(entry.get("instead", "")),
+        count=int(_number(entry.get("count", 1), (*where, "count"), integer=True)),
+        values=dict(_mapping(entry.get("values"), (*where, "values"), "values")),
+    )
+    if fault.resource and fault.resource not in {r.name for r in station.resources}:
+        raise _Problem((*where, "resource"), f"unknown resource '{fault.resource}'")
+    for key, name in (("effect", fault.effect), ("instead", fault.instead)):
+        if name and name not in station.model.transition_index:
+            raise _Problem((*where, key), f"unknown transition '{name}'")
+    for name in fault.values:
+        if name not in station.model.variable_index:
+            raise _Problem((*where, "values", name), f"unknown variable '{name}'")
+    text = ", ".join(f"{key}={entry[key]}" for key in _FAULT_KEYS[2:] if key in entry)
+    at = _number(entry["at"], (*where, "at")) if "at" in entry else None
+    return ScheduledFault(fault, at, when, text)
 
 
 def _when(entry: dict[str, Any], where: Path, scope: Any) -> Expr | None:

@@ -12,7 +12,7 @@ from hw.device_file.spec import (
     Wire,
 )
 from hw.pipelines import NamedPoses, RobotPrograms, Tool
-from planner.model.flat import Variable, VariableKind
+from planner.model.flat import Variable
 from planner.model.station import Station
 from planner.reading.yaml_reader import Reader, closest
 
@@ -91,9 +91,6 @@ Fields = dict[str, tuple[yaml.Node, yaml.Node]]
 
 
 JOINTS = 6
-
-
-READ_ONLY = (VariableKind.DECISION, VariableKind.ESTIMATED)
 
 
 def unexpected(reader: Reader, fields: Fields, keys: tuple[str, ...], driver: str) -> None:

@@ -1,6 +1,6 @@
 """Starting the emulators of a device file (`sp emulate`, the demo, tests).
 
-One process per device: a UR controller emulator per robot (`hw.ur.emulator.controller`, on the
+One process per device: a UR controller emulator per robot (`hw.ur.emulator.server`, on the
 robot's own loopback address, since ur_rtde's ports are fixed) and a Modbus emulator per
 Modbus device (`hw.modbus.emulator.server`, serving the documented map the device file names).
 Robots start at the named pose of their start value, the PLC with the start values it
@@ -81,7 +81,7 @@ def _start(
     if device.driver is DriverKind.UR:
         joints = _start_joints(device, start_values)
         args = ["--host", device.host, "--control-port", str(control_port)]
-        return start("hw.ur.emulator.controller", *args, "--joints", ",".join(map(str, joints)))
+        return start("hw.ur.emulator.server", *args, "--joints", ",".join(map(str, joints)))
     port = 0 if any_port else device.port
     spec = f"{device.map}:{device.name}:{device.host}:{port}:{device.unit}"
     return start(

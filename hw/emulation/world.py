@@ -56,8 +56,6 @@ class EmulatedWorld:
         self.thread = threading.Thread(target=self._send, name="emulated-world", daemon=True)
         self.thread.start()
 
-    # -- what the station asks -------------------------------------------------------------------
-
     def inject(self, fault: Fault) -> None:
         match fault.kind:
             case FaultKind.DISCONNECT | FaultKind.RECONNECT:
@@ -122,8 +120,6 @@ class EmulatedWorld:
     def close(self) -> None:
         self.requests.put(None)
         self.thread.join(timeout=5)
-
-    # -- translations ----------------------------------------------------------------------------
 
     def _of_resource(self, resource: str) -> list[DeviceSpec]:
         found = [
@@ -191,8 +187,6 @@ class EmulatedWorld:
     def _kind(self, name: str) -> VariableKind | None:
         model = self.station.model
         return model.variable(name).kind if name in model.variable_index else None
-
-    # -- the sender ------------------------------------------------------------------------------
 
     def request(self, device: str, request: dict[str, Any]) -> None:
         if device not in self.controls:

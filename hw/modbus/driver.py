@@ -1,5 +1,9 @@
 """The station's driver for one Modbus TCP device: polls points, writes level commands.
 
+Size: one class, one concept (a device's link: poll, write, reconnect, judge the answers);
+the station's side and the loop's side share its state, and apart each would hold half of
+one life cycle.
+
 Life cycle: `ModbusDriver(...)`, `start()`, then from the station's tick, none of which
 blocks: `latest()` (the last good reading), `write(point, value)` (a level: the newest value
 per point wins), `status()` and `available`; finally `close()`, which leaves no thread and
@@ -104,7 +108,10 @@ class _Trouble(Exception):
 
 
 class ModbusDriver:
-    """One Modbus TCP device, polled every `poll_period` seconds (see the module)."""
+    """One Modbus TCP device, polled every `poll_period` seconds (see the module).
+
+    The public methods are the station's side: any thread, never blocking on the device.
+    The underscored ones run on the shared loop."""
 
     def __init__(
         self,
@@ -141,8 +148,6 @@ class ModbusDriver:
         self._wake: asyncio.Future[None] | None = None
         self._sent: tuple[bytes, int] = (b"", 0)  # the request's transaction id, function
         self._malformed = ""
-
-    # -- the station's side (any thread, never blocks on the device) -----------------------------
 
     def start(self) -> None:
         if self._loop is not None:
@@ -217,8 +222,6 @@ class ModbusDriver:
                 "the device answers but its logic does not run"
             )
         return ""
-
-    # -- the loop's side -------------------------------------------------------------------------
 
     async def _begin(self) -> None:
         self._task = asyncio.get_running_loop().create_task(self._run(), name=self.name)

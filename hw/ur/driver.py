@@ -69,8 +69,6 @@ class URDriver:
         self._conn: Connection | None = None
         self._started_at = 0.0
 
-    # -- the station's side -----------------------------------------------------------------------
-
     def start(self) -> None:
         """Starts the supervisor thread (and through it the child); returns at once."""
         if self._thread is not None:
@@ -140,8 +138,6 @@ class URDriver:
         with self._lock:
             self._last_move = None
             self._commands.append(("stop_j",))
-
-    # -- the supervisor thread --------------------------------------------------------------------
 
     def _supervise(self) -> None:
         backoff = BACKOFF_FIRST

@@ -1,6 +1,6 @@
 """Readable predicates from BDDs: irredundant sums of products over the model's variables.
 
-Used for the supervisor guards that `sp check` prints (planner/bdd/synthesis.py).
+Used for the supervisor guards that `sp check` prints (`planner.bdd.guards`).
 """
 
 from __future__ import annotations
@@ -12,13 +12,6 @@ from planner.model.expressions import BoolVar, Equals, Expr, Not, Value, conjunc
 
 Cube = tuple[tuple[str, bool], ...]
 """Literals over BDD bits, outermost bit first."""
-
-
-def cover_expr(sym: SymbolicModel, lower: Function, upper: Function) -> Expr:
-    """A short expression true on all of `lower` and nowhere outside `upper`."""
-    found = Cover(sym).expr(lower, upper)
-    assert found is not None  # no limit
-    return found
 
 
 class Cover:

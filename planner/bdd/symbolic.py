@@ -13,6 +13,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, replace
 from typing import Any
 
+from planner.bdd.ordering import variable_order
 from planner.model.expressions import (
     And,
     Assign,
@@ -25,7 +26,6 @@ from planner.model.expressions import (
     Or,
     SameValue,
     Value,
-    variables_of,
 )
 from planner.model.flat import Model, Transition, TransitionKind
 
@@ -69,93 +69,6 @@ class SymbolicTransition:
     @property
     def kind(self) -> TransitionKind:
         return self.transition.kind
-
-
-def variable_order(model: Model, bits: Mapping[str, tuple[str, ...]]) -> list[str]:
-    """A static BDD variable order (sifted once more after synthesis).
-
-    Variables are arranged by FORCE (Aloul, Markov, Sakallah 2003): each transition and each
-    specification is a hyperedge over the variables it reads or writes, and every variable
-    moves repeatedly to the centre of gravity of its hyperedges, so that variables used
-    together end up close together.  Then the bits of variables compared or copied
-    (`x == y`, `x := y`) are interleaved: their relation is linear in the width that way,
-    and exponential with the variables apart.
-    """
-    names = [v.name for v in model.variables]
-    edges = [
-        sorted(variables_of(t.guard) | {a.target for a in t.actions} | _sources(t))
-        for t in model.transitions
-    ] + [sorted(variables_of(s.invariant)) for s in model.specifications]
-    edges = [e for e in edges if len(e) > 1]
-    position = {name: float(i) for i, name in enumerate(names)}
-    for _ in range(20):
-        centre = [sum(position[v] for v in e) / len(e) for e in edges]
-        total = {name: 0.0 for name in names}
-        count = {name: 0 for name in names}
-        for e, c in zip(edges, centre, strict=True):
-            for v in e:
-                total[v] += c
-                count[v] += 1
-        target = {n: total[n] / count[n] if count[n] else position[n] for n in names}
-        ranked = sorted(names, key=lambda n: (target[n], position[n]))
-        new = {name: float(i) for i, name in enumerate(ranked)}
-        if new == position:
-            break
-        position = new
-    # FORCE fixes neighbourhoods, not direction: put the hubs (variables in many hyperedges,
-    # such as who holds a shared tool) on top, where they split the BDD early
-    degree = dict.fromkeys(names, 0)
-    for e in edges:
-        for v in e:
-            degree[v] += 1
-    ordered = sorted(names, key=lambda n: position[n])
-    last = len(ordered) - 1
-    if sum(degree[n] * i for i, n in enumerate(ordered)) > sum(
-        degree[n] * (last - i) for i, n in enumerate(ordered)
-    ):
-        ordered.reverse()
-
-    parent = {name: name for name in names}
-
-    def find(name: str) -> str:
-        while parent[name] != name:
-            parent[name] = parent[parent[name]]
-            name = parent[name]
-        return name
-
-    def visit(expr: Expr) -> None:
-        match expr:
-            case SameValue(left, right):
-                parent[find(right)] = find(left)
-            case Not(arg):
-                visit(arg)
-            case And(args) | Or(args):
-                for arg in args:
-                    visit(arg)
-            case Implies(left, right):
-                visit(left)
-                visit(right)
-
-    for t in model.transitions:
-        visit(t.guard)
-        for action in t.actions:
-            if action.source is not None:
-                parent[find(action.source)] = find(action.target)
-    for spec in model.specifications:
-        visit(spec.invariant)
-    groups: dict[str, list[str]] = {}
-    for name in ordered:  # a group sits where its first member landed
-        groups.setdefault(find(name), []).append(name)
-    order: list[str] = []
-    for members in groups.values():
-        width = max(len(bits[m]) for m in members)
-        for j in range(width):
-            order.extend(bits[m][j] for m in members if j < len(bits[m]))
-    return order
-
-
-def _sources(t: Transition) -> set[str]:
-    return {a.source for a in t.actions if a.source is not None}
 
 
 class SymbolicModel:
@@ -215,8 +128,6 @@ class SymbolicModel:
         if sorted(order) != sorted(self.bdd.vars):
             raise ValueError("the saved variable order does not match this model's bits")
         cudd.reorder(self.bdd, {name: level for level, name in enumerate(order)})
-
-    # -- encoding ------------------------------------------------------------------------------
 
     def code(self, variable: str, value: Value) -> dict[str, bool]:
         """The bit assignment that encodes `variable == value`."""
@@ -349,8 +260,6 @@ class SymbolicModel:
             for a, b in zip(self.bits[action.target], self.bits[action.source], strict=True)
         }
 
-    # -- images --------------------------------------------------------------------------------
-
     def image(self, t: SymbolicTransition, states: Function) -> Function:
         """States reached by taking `t` from those of `states` where its guard holds."""
         if t.post is not None:
@@ -366,8 +275,6 @@ class SymbolicModel:
         if not t.substitution:
             return states & t.guard
         return self.bdd.let(dict(t.substitution), states) & t.guard
-
-    # -- concrete states -----------------------------------------------------------------------
 
     def state(self, values: State) -> Function:
         """The single-state set of a concrete state tuple."""

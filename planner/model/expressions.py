@@ -2,7 +2,7 @@
 
 The typed `Expr` every planner, the runner and the pages work on, with its constructors
 and formatting, and the `Assign` of an action; text becomes these in
-`planner.model.expression_text`.
+`planner.model.expression_syntax` (parsed) and `planner.model.expression_text` (resolved).
 
 Nesting is bounded (`MAX_NESTING`, docs/models.md), so that a hostile or generated model is
 refused with a located error instead of overflowing the stack of whatever walks it later.
@@ -29,9 +29,6 @@ class ExpressionError(Exception):
         super().__init__(message)
         self.message = message
         self.offset = offset
-
-
-# ---- typed expressions ----------------------------------------------------------------------
 
 
 @dataclass(frozen=True, slots=True)
@@ -232,9 +229,6 @@ def _format(expr: Expr, parent: int) -> str:
             text = f"{_format(left, 2)} -> {_format(right, 1)}"
             return f"({text})" if parent > 1 else text
     raise TypeError(expr)
-
-
-# ---- actions --------------------------------------------------------------------------------
 
 
 @dataclass(frozen=True, slots=True)

@@ -11,6 +11,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from enum import StrEnum
+from functools import cached_property
 
 from planner.model.expressions import (
     Assign,
@@ -130,6 +131,18 @@ class Station:
 
     def intention(self, name: str) -> Intention:
         return next(i for i in self.intentions if i.name == name)
+
+    def owner_of(self, name: str) -> str:
+        """The resource a transition or variable belongs to; "" if station-wide or unknown."""
+        return self._owners.get(name, "")
+
+    @cached_property
+    def _owners(self) -> dict[str, str]:
+        """Name -> resource, made once; a transition's owner wins over a variable of the
+        same name (names are unique per list, not across lists)."""
+        owners = {name: r.name for r in self.resources for name in r.variables}
+        owners.update({name: r.name for r in self.resources for name in r.transitions})
+        return owners
 
     @property
     def watches(self) -> tuple[tuple[Resource, Watch], ...]:

@@ -102,8 +102,6 @@ class _Encoding:
         self.bits.append({bit: self.new() for bit in self.sym.state_bits})
         return step
 
-    # -- Tseitin -------------------------------------------------------------------------------
-
     def conjoin(self, lits: list[int]) -> int:
         lits = [lit for lit in lits if lit != self.true]
         if not lits:

@@ -57,6 +57,7 @@ class Outcome:
 
 
 Layer = list[Function]  # one set per number of counted steps taken, 0 .. budget
+_Hit = tuple[int, int, int, Function]  # cost, counted steps, depth, the states meeting the goal
 
 CANONICAL_ROUNDS = 3
 
@@ -75,29 +76,19 @@ def search(sym: SymbolicModel, problem: Problem) -> Outcome:
     false = sym.false
     layers: list[Layer] = [[problem.start] + [false] * budget]
     seen = [problem.start] * (budget + 1)  # seen[j]: reached with at most j counted steps
-    extra = problem.cost - 1
-    best: tuple[int, int, int, Function] | None = None  # cost, counted steps, depth, states
+    best: _Hit | None = None
     # whether a larger budget would reach a state sooner than this search: a counted step
     # out of the last count to a state not reached by the depth it leads to
     escaped = False
     while True:
         depth = len(layers) - 1
-        for j, states in enumerate(layers[-1]):
-            if best is not None and (depth + extra * j, j) >= best[:2]:
-                continue
-            hit = states & problem.goal
-            if hit != false:
-                best = (depth + extra * j, j, depth, hit)
-        if best is not None:
-            cost, count = best[:2]
-            hopeless = all(  # a layer with fewer counted steps cannot do better any more
-                states == false or depth + 1 + extra * j > cost
-                for j, states in enumerate(layers[-1][:count])
-            )
-            if hopeless or depth >= problem.max_steps:
-                at, hit = best[2:]
-                plan = _walk(sym, problem, layers[: at + 1], count, hit)
-                return Outcome(True, plan, at + 1, seen[-1])
+        best = _best_hit(sym, problem, layers[-1], depth, best)
+        if best is not None and (
+            _hopeless(sym, problem, layers[-1], depth, best) or depth >= problem.max_steps
+        ):
+            _, count, at, hit = best
+            plan = _walk(sym, problem, layers[: at + 1], count, hit)
+            return Outcome(True, plan, at + 1, seen[-1])
         if depth >= problem.max_steps:
             break
         sources = [
@@ -106,17 +97,7 @@ def search(sym: SymbolicModel, problem: Problem) -> Outcome:
             cudd.restrict(states, states | ~seen[j]) & problem.always
             for j, states in enumerate(layers[-1])
         ]
-        frontier: Layer = []
-        for j in range(budget + 1):
-            found = image(sym, problem, sources[j], plain)
-            if j > 0:
-                found |= image(sym, problem, sources[j - 1], counted)
-            found &= problem.allowed & ~seen[j]
-            if problem.symmetries and found != false:
-                found = canonical(problem.symmetries, found, CANONICAL_ROUNDS) & ~seen[j]
-            frontier.append(found)
-            for k in range(j, budget + 1):
-                seen[k] |= found
+        frontier = _next_layer(sym, problem, sources, seen, plain, counted)
         if counted and not escaped:
             outside = image(sym, problem, sources[budget], counted) & problem.allowed & ~seen[-1]
             escaped = outside != false
@@ -127,6 +108,54 @@ def search(sym: SymbolicModel, problem: Problem) -> Outcome:
             break  # fixpoint: the goal is unreachable at any length
         layers.append(frontier)
     return Outcome(False, layers=len(layers), reached=seen[-1], exhausted=not escaped)
+
+
+def _best_hit(
+    sym: SymbolicModel, problem: Problem, layer: Layer, depth: int, best: _Hit | None
+) -> _Hit | None:
+    """The cheapest hit so far: `best`, or one of this layer's that costs less."""
+    extra = problem.cost - 1
+    for j, states in enumerate(layer):
+        if best is not None and (depth + extra * j, j) >= best[:2]:
+            continue
+        hit = states & problem.goal
+        if hit != sym.false:
+            best = (depth + extra * j, j, depth, hit)
+    return best
+
+
+def _hopeless(sym: SymbolicModel, problem: Problem, layer: Layer, depth: int, best: _Hit) -> bool:
+    """No layer with fewer counted steps than the best hit can still do better."""
+    cost, count = best[:2]
+    extra = problem.cost - 1
+    return all(
+        states == sym.false or depth + 1 + extra * j > cost
+        for j, states in enumerate(layer[:count])
+    )
+
+
+def _next_layer(
+    sym: SymbolicModel,
+    problem: Problem,
+    sources: list[Function],
+    seen: list[Function],
+    plain: Sequence[SymbolicTransition],
+    counted: Sequence[SymbolicTransition],
+) -> Layer:
+    """The states first reached one step deeper, per number of counted steps taken (a
+    counted step moves a state up one count); `seen` grows by them."""
+    frontier: Layer = []
+    for j in range(problem.budget + 1):
+        found = image(sym, problem, sources[j], plain)
+        if j > 0:
+            found |= image(sym, problem, sources[j - 1], counted)
+        found &= problem.allowed & ~seen[j]
+        if problem.symmetries and found != sym.false:
+            found = canonical(problem.symmetries, found, CANONICAL_ROUNDS) & ~seen[j]
+        frontier.append(found)
+        for k in range(j, problem.budget + 1):
+            seen[k] |= found
+    return frontier
 
 
 def image(

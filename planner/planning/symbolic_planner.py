@@ -1,5 +1,8 @@
 """The `bdd` engine: a query planned part by part, each part a breadth-first search.
 
+Size: one class, one concept (the symbolic search of a query, part by part); splitting it
+would scatter one algorithm.
+
 `planner.planning.relevance` says which variables a query can matter to and which parts of the
 station are independent for it; this module turns each active part into a `search.Problem`
 over its own variables, orders the parts' minimal plans so that their concatenation is a
@@ -129,8 +132,6 @@ class SymbolicPlanner:
         probe(sym, start, usable, automatic, self.good, PROBE_LAYERS)
         return _lookups(sym) - before
 
-    # -- the query's sets ------------------------------------------------------------------------
-
     def usable(self, query: PlanQuery) -> tuple[SymbolicTransition, ...]:
         key = (query.disabled, query.maintenance)
         found = self._usable.get(key)
@@ -209,8 +210,6 @@ class SymbolicPlanner:
                 self._predicates.clear()
             self._predicates[expr] = predicate
         return predicate(state)
-
-    # -- planning ------------------------------------------------------------------------------
 
     def plan(self, query: PlanQuery) -> PlanResult:
         self.tune()
@@ -434,8 +433,6 @@ class SymbolicPlanner:
             symmetries=swappers,
         )
 
-    # -- symmetry ------------------------------------------------------------------------------
-
     @property
     def symmetries(self) -> tuple[Symmetry, ...]:
         if self._symmetries is None:
@@ -488,8 +485,6 @@ class SymbolicPlanner:
                 self._swapper_cache.clear()
             self._swapper_cache[key] = swapper
         return swapper
-
-    # -- results -------------------------------------------------------------------------------
 
     def _statistics(self, parts: Sequence[_Part]) -> dict[str, float]:
         out: dict[str, float] = {

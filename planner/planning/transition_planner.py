@@ -11,15 +11,14 @@ from collections.abc import Callable
 from functools import cached_property
 from typing import TYPE_CHECKING
 
+from planner.bdd.guards import SupervisorGuard, supervisor_guards
 from planner.bdd.sifting import sift
 from planner.bdd.symbolic import Function, SymbolicModel
 from planner.bdd.synthesis import (
-    SupervisorGuard,
     automatic_cycle,
     bad_by_specification,
     bad_parts,
     bad_states,
-    supervisor_guards,
     violated_by,
 )
 from planner.model.expressions import TRUE, variables_of

@@ -2,8 +2,9 @@
 
 `load_model` and `load_station` are the entry points; `yaml_reader` is the located-error
 walker under every reader, `flat` reads DESIGN.md section 8's three lists, `station` the
-resources, abilities, operations and intentions, `watch` a person's watch and `display` the
-words for people.
+station form in order: its resources with their `abilities`, then the `operations` and
+intentions; `parameters` is a template's parameter, `watch` a person's watch and `display`
+the words for people.
 """
 
 from __future__ import annotations

@@ -11,7 +11,8 @@ from collections.abc import Callable, Collection, Mapping
 
 import yaml
 
-from planner.model.expression_text import Scope, is_name
+from planner.model.expression_syntax import is_name
+from planner.model.expression_text import Scope
 from planner.model.expressions import TRUE, Assign, Expr, Value
 from planner.model.flat import (
     BOOL,

@@ -15,15 +15,13 @@ from typing import TypeVar
 
 import yaml
 
-from planner.model.expression_text import (
-    Scope,
+from planner.model.expression_syntax import (
     is_name,
     parse_assign_syntax,
     parse_syntax,
-    resolve,
-    resolve_assign,
     substitute,
 )
+from planner.model.expression_text import Scope, resolve, resolve_assign
 from planner.model.expressions import Assign, Expr, ExpressionError, Value
 from planner.model.flat import (
     SourceLocation,
@@ -35,6 +33,7 @@ except AttributeError:  # pragma: no cover
     _Loader = yaml.SafeLoader
 
 T = TypeVar("T")
+Fields = dict[str, tuple[yaml.Node, yaml.Node]]  # a mapping's keys -> (key node, value node)
 
 MAX_YAML_NESTING = 100
 """Lists and mappings nested deeper are refused: a model needs about 8 levels, and libyaml's
@@ -72,8 +71,6 @@ class Reader:
         self.text = text
         self.file = file
         self.diagnostics: list[Diagnostic] = []
-
-    # -- locations -----------------------------------------------------------------------------
 
     def at(self, node: yaml.Node) -> SourceLocation:
         mark = node.start_mark
@@ -119,8 +116,6 @@ class Reader:
         if self.diagnostics:
             raise ModelError(self.diagnostics)
 
-    # -- structure -----------------------------------------------------------------------------
-
     def compose(self) -> yaml.Node | None:
         self.check_nesting()
         try:
@@ -158,13 +153,13 @@ class Reader:
 
     def mapping(
         self, node: yaml.Node, what: str, allowed: Iterable[str], required: Iterable[str] = ()
-    ) -> dict[str, tuple[yaml.Node, yaml.Node]] | None:
+    ) -> Fields | None:
         """Keys of a mapping node → (key node, value node); unknown or missing keys are errors."""
         if not isinstance(node, yaml.MappingNode):
             self.error(node, f"{what} must be a mapping (key: value)")
             return None
         allowed = list(allowed)
-        result: dict[str, tuple[yaml.Node, yaml.Node]] = {}
+        result: Fields = {}
         for key_node, value_node in node.value:
             key = str(key_node.value)
             if key in result:
@@ -228,8 +223,6 @@ class Reader:
                 )
             else:
                 seen[name] = node
-
-    # -- expressions ---------------------------------------------------------------------------
 
     def template(
         self, node: yaml.Node, what: str, values: Mapping[str, str] | None
@@ -295,3 +288,18 @@ def each(
         item = parse(node)
         if item is not None:
             yield item
+
+
+def key_node(node: yaml.Node, key: str) -> yaml.Node | None:
+    """The value node of `key` in a mapping node, if it has one."""
+    if isinstance(node, yaml.MappingNode):
+        for key_part, value in node.value:
+            if key_part.value == key:
+                return value  # type: ignore[no-any-return]
+    return None
+
+
+def name_node(node: yaml.Node) -> yaml.Node:
+    """An item's `name` value node (where a duplicate name is reported), else the item's."""
+    found = key_node(node, "name")
+    return node if found is None else found

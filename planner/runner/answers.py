@@ -31,13 +31,26 @@ class Answer:
     millis: float | None  # planning time, None without a stopwatch
 
 
-class Planning(Protocol):
+class QueryAnswerer(Protocol):
+    """Who answers the runner's planning queries: `InProcess`, `Delayed`, or a station's
+    planning worker (`app.station.planning_worker`)."""
+
     @property
     def asynchronous(self) -> bool:
         """Answers may come later than the tick that asks."""
 
     def answer(self, level: PlanLevel, query: PlanQuery) -> Answer | None:
         """The answer to `query` (None: not yet; ask again next tick)."""
+
+
+class QueryObserver(Protocol):
+    """Sees every planning query of a runner (benchmarks time them all, announced or not)."""
+
+    def asked(self, now: float, level: PlanLevel, purpose: str) -> None: ...
+
+    def answered(self, result: PlanResult, millis: float | None) -> None: ...
+
+    def announced(self) -> None: ...
 
 
 class InProcess:
@@ -76,7 +89,7 @@ class Delayed:
     asynchronous = True
 
     def __init__(
-        self, planning: Planning, delay: float, budget: float, clock: Callable[[], float]
+        self, planning: QueryAnswerer, delay: float, budget: float, clock: Callable[[], float]
     ) -> None:
         self.planning, self.delay, self.budget, self.clock = planning, delay, budget, clock
         self.asked: dict[tuple[PlanLevel, PlanQuery], float] = {}

@@ -35,7 +35,7 @@ def monitor_effects(tick: Tick) -> None:
     effects = index.effects if look is None else [index.effects[k] for k in sorted(look)]
     for effect in effects:
         name = effect.name
-        enabled = effect.guard(current) and index.owner.get(name) not in state.unavailable
+        enabled = effect.guard(current) and index.station.owner_of(name) not in state.unavailable
         if not enabled:
             state.effect_enabled_since.pop(name, None)
             state.reminded.pop(name, None)

@@ -62,7 +62,7 @@ def stuck(tick: Tick, plan: TransitionPlan, what: str) -> bool:
     current = tick.current()
     unavailable = tick.state.unavailable
     for name in plan.expected():
-        owner = tick.index.owner.get(name)
+        owner = tick.index.station.owner_of(name)
         if owner in unavailable or tick.index.transition(name).guard(current):
             return False  # it may yet happen (a resource may answer again)
     waits = ", ".join(sorted(plan.expected()))
@@ -101,7 +101,7 @@ def held_back(tick: Tick, name: str) -> str:
     automatic transition goes first."""
     state = tick.state
     if name in disabled(tick):
-        owner = tick.index.owner.get(name, "")
+        owner = tick.index.station.owner_of(name)
         if owner in state.unavailable:
             return f"{owner} is not answering"
         if name in state.timed_out:

@@ -47,19 +47,14 @@ def act(tick: Tick, action: Action) -> Reply:
             return restart.reset_operation(tick, action)
         case ReenableEffect():
             return reenable_effect(tick, action)
-    return refuse(tick, action, type(action).__name__, "the runner does not know this action")
-
-
-def refuse(tick: Tick, action: Action, subject: str, why: str) -> Reply:
-    tick.emit(EventKind.REFUSED, subject, user=action.user, why=why)
-    return Reply.refuse(action, subject, why)
+    return tick.refuse(action, type(action).__name__, "the runner does not know this action")
 
 
 def start_or_cancel(tick: Tick, action: StartIntention | CancelIntention) -> Reply:
     state = tick.state
     name, who = action.name, action.user
     if name not in state.intentions:
-        return refuse(tick, action, name, "there is no such intention")
+        return tick.refuse(action, name, "there is no such intention")
     current = state.intentions[name]
     if isinstance(action, StartIntention):
         state.auto_start.add(name)
@@ -79,7 +74,7 @@ def approve_or_reject(tick: Tick, action: Approve | Reject) -> Reply:
     plan = state.recovery
     step = action.step
     if plan is None or not 0 <= step < len(plan.blocks):
-        return refuse(tick, action, f"step {step}", "no such recovery step")
+        return tick.refuse(action, f"step {step}", "no such recovery step")
     transition = plan.blocks[step].transition
     if isinstance(action, Reject):
         tick.emit(EventKind.OPERATOR, "reject", user=action.user, step=step, transition=transition)
@@ -99,12 +94,12 @@ def maintenance_done(tick: Tick, action: MaintenanceDone) -> Reply:
     state = tick.state
     name = action.transition
     if name not in pending_maintenance(tick):
-        return refuse(tick, action, name, "not a maintenance step asked for now")
+        return tick.refuse(action, name, "not a maintenance step asked for now")
     chosen = tick.index.transition(name)
     assert chosen.kind is TransitionKind.MAINTENANCE
     current = tick.current()
     if not chosen.guard(current):
-        return refuse(tick, action, name, "its guard does not hold")
+        return tick.refuse(action, name, "its guard does not hold")
     tick.set_values(chosen.apply(current))
     tick.emit(EventKind.OPERATOR, "maintenance done", user=action.user, transition=name)
     tick.errors_may_clear = True
@@ -118,7 +113,7 @@ def reenable_effect(tick: Tick, action: ReenableEffect) -> Reply:
     state = tick.state
     name = action.name
     if name not in state.timed_out:
-        return refuse(tick, action, name, "the effect is not timed out")
+        return tick.refuse(action, name, "the effect is not timed out")
     state.timed_out.discard(name)
     state.effect_enabled_since.pop(name, None)
     tick.reenabled_by_people.add(name)

@@ -8,28 +8,18 @@ event labelled as in seed 000 Table 1 ("TP w/RTO w/MT").
 from __future__ import annotations
 
 from collections.abc import Iterable
-from typing import Protocol
 
 from planner.model.expressions import Assign, Expr, conjunction, negation
 from planner.model.station import effect_as_goal
 from planner.planning.query import PlanQuery, PlanResult, PlanStatus
 from planner.runner.answers import Pending
+from planner.runner.answers import QueryObserver as QueryObserver  # app/ imports it from here
 from planner.runner.tick import Tick
 from planner.runner.vocabulary import EventKind, PlanLevel, RecoveryFlag, ReplanReason, plan_label
 
 # a maintenance step (a person's work, planned in recovery) weighs as much as this many of
 # the station's own steps: a robot that can move itself is not moved by hand
 MAINTENANCE_COST = 10
-
-
-class QueryObserver(Protocol):
-    """Sees every planning query of a runner (benchmarks time them all, announced or not)."""
-
-    def asked(self, now: float, level: PlanLevel, purpose: str) -> None: ...
-
-    def answered(self, result: PlanResult, millis: float | None) -> None: ...
-
-    def announced(self) -> None: ...
 
 
 def ask(

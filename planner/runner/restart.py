@@ -58,8 +58,7 @@ def set_estimated(tick: Tick, action: SetEstimated) -> Reply:
     name, value, who = action.variable, action.value, action.user
     why = _estimate_refused(tick, name, value, action.reason)
     if why:
-        tick.emit(EventKind.REFUSED, name, user=who, why=why)
-        return Reply.refuse(action, name, why)
+        return tick.refuse(action, name, why)
     before = state.values[name]
     state.values[name] = value
     tick.emit(
@@ -98,8 +97,7 @@ def reset_operation(tick: Tick, action: ResetOperation) -> Reply:
     elif not state.restart_mode:
         why = "operations are reset in restart mode"
     if why:
-        tick.emit(EventKind.REFUSED, name, user=who, why=why)
-        return Reply.refuse(action, name, why)
+        return tick.refuse(action, name, why)
     forget_failures(tick, name)
     state.operation_goals.pop(name, None)
     if state.operation_plan is not None:

@@ -26,11 +26,11 @@ from planner.runner import (
     observing,
     operations,
     people,
+    restart,
     transitions,
 )
 from planner.runner.actions import Reply
-from planner.runner.answers import InProcess, Pending, Planning
-from planner.runner.queries import QueryObserver
+from planner.runner.answers import InProcess, Pending, QueryAnswerer, QueryObserver
 from planner.runner.state import RunnerState
 from planner.runner.station_index import StationIndex
 from planner.runner.tick import Tick
@@ -54,7 +54,10 @@ def run_tick(tick: Tick, inputs: Inputs) -> list[Reply]:
         tick.state.announced = ()
         intentions.start_and_finish(tick)  # 4.
         attempt(tick, operations.follow_operation_plan)  # 5. the operation planner
-        attempt(tick, transitions.follow_transition_plan)  # 6. the transition planner
+        if tick.state.restart_mode:
+            attempt(tick, restart.follow_reset_plan)  # 6. in restart mode: the resets
+        else:
+            attempt(tick, transitions.follow_transition_plan)  # 6. the transition planner
         attempt(tick, maintenance.follow_maintenance_plan)  # after errors: people's steps
     effects.monitor_effects(tick)  # 7. effect time-outs
     if background.due(tick):
@@ -87,7 +90,7 @@ class Runner:
         config: RunnerConfig | None = None,
         stopwatch: Stopwatch | None = None,
         observer: QueryObserver | None = None,
-        planning: Planning | None = None,
+        planning: QueryAnswerer | None = None,
     ) -> None:
         self.station = station
         self.model = station.model
@@ -98,7 +101,7 @@ class Runner:
         self.index = StationIndex(station, self.semantics)
         self.stopwatch = stopwatch
         self.observer = observer
-        self.planning: Planning = planning or InProcess(
+        self.planning: QueryAnswerer = planning or InProcess(
             transition_planner, operation_planner, stopwatch
         )
         self._bad: dict[State, bool] = {}

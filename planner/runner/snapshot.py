@@ -1,5 +1,8 @@
 """A runner's live state as JSON and back (DESIGN.md section 4).
 
+Size: one format, written and read.  Most of it is the loader's checks, one per stored
+field, kept beside the writer so that a field changed in one is changed in the other.
+
 The station server saves `dump(state)` after every tick and, after a `kill -9`, carries on
 from `load(runner, saved, now)`.  Expressions are stored as text and parsed against the
 runner's model, so a snapshot is checked against the model it is restored into: a name or a
@@ -187,35 +190,14 @@ class _Loader:
         }
 
     def state(self, data: Mapping[str, Any], now: float) -> RunnerState:
-        model = self.model
-        values = self.mapping(data["values"], "variable", "values")
-        for name, value in values.items():
-            variable = model.variable(name)
-            if not any(type(value) is type(v) and value == v for v in variable.domain):
-                shown = variable.describe_domain()
-                raise SnapshotError(f"values: {value!r} is not a value of '{name}' ({shown})")
-        pairs = self.check(data["goals"], list, "goals")
-        if not all(isinstance(p, list) and len(p) == 2 and isinstance(p[0], str) for p in pairs):
-            raise SnapshotError("goals: expected a list of [operation, goal] pairs")
-        goals = self.mapping(dict(pairs), "operation", "goals")
-        failures = self.mapping(data["failures"], "operation", "failures")
-        for name, count in failures.items():
-            self.check(count, int, f"failures['{name}']")
-        texts = (
-            "maintained",
-            "restart_reason",
-            "restart_user",
-            "replan_operations",
-            "replan_transitions",
-            "halted",
-        )
-        strings = {key: self.check(data[key], str, key) for key in texts}
-        if strings["maintained"]:
-            self.keep(strings["maintained"], "operation", "maintained", droppable=False)
+        values = self.values(data["values"])
+        goals = self.goals(data["goals"])
+        failures = self.counts(data["failures"], "operation", "failures")
+        strings = self.strings(data)
         self.mapping(data["heard"], "resource", "heard")  # the old clock's times
         since = self.mapping(data["effect_since"], "transition", "effect_since")
         return RunnerState(
-            values={v.name: values.get(v.name, v.initial) for v in model.variables},
+            values={v.name: values.get(v.name, v.initial) for v in self.model.variables},
             intentions=self.states(data["intentions"], "intention", IntentionState),
             operations=self.states(data["operations"], "operation", OperationState),
             operation_goals={
@@ -247,6 +229,38 @@ class _Loader:
             operation_causes=self.causes(data["operation_causes"], "operation"),
             **self.added_fields(data),
         )
+
+    def values(self, raw: Any) -> dict[str, Any]:
+        values = self.mapping(raw, "variable", "values")
+        for name, value in values.items():
+            variable = self.model.variable(name)
+            if not any(type(value) is type(v) and value == v for v in variable.domain):
+                shown = variable.describe_domain()
+                raise SnapshotError(f"values: {value!r} is not a value of '{name}' ({shown})")
+        return values
+
+    def goals(self, raw: Any) -> dict[str, Any]:
+        """The executing operations' goals, as pairs in the order they started."""
+        pairs = self.check(raw, list, "goals")
+        if not all(isinstance(p, list) and len(p) == 2 and isinstance(p[0], str) for p in pairs):
+            raise SnapshotError("goals: expected a list of [operation, goal] pairs")
+        return self.mapping(dict(pairs), "operation", "goals")
+
+    def strings(self, data: Mapping[str, Any]) -> dict[str, str]:
+        """The fields stored as text: the operation maintained, restart's reason and user,
+        why plans are made again, why automatic steps halted."""
+        texts = (
+            "maintained",
+            "restart_reason",
+            "restart_user",
+            "replan_operations",
+            "replan_transitions",
+            "halted",
+        )
+        strings = {key: self.check(data[key], str, key) for key in texts}
+        if strings["maintained"]:
+            self.keep(strings["maintained"], "operation", "maintained", droppable=False)
+        return strings
 
     def added_fields(self, data: Mapping[str, Any]) -> dict[str, Any]:
         """Fields added to format 1 later: late effects, reminders, announced violations."""

@@ -72,10 +72,10 @@ class StationIndex:
             own = {n for n in ability.transitions if n in self.effect_position}
             for name in own:
                 self.alternatives[name] = self.alternatives.get(name, frozenset()) | (own - {name})
-        self.owner: dict[str, str] = {}  # transition -> the resource it belongs to
-        for resource in station.resources:
-            for name in resource.transitions:
-                self.owner[name] = resource.name
+        # transition -> its resource: `Station.owner_of` as a mapping, for the pages and records
+        self.owner: dict[str, str] = {
+            name: station.owner_of(name) for r in station.resources for name in r.transitions
+        }
         self.resource_transitions = {r.name: frozenset(r.transitions) for r in station.resources}
         # the transitions of people's resources (their steps are people's to do), and the
         # effects among them: never timed out as a device's would be

@@ -9,12 +9,16 @@ operation changes state, so that every change is an event, follows its life cycl
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import TYPE_CHECKING, TypeVar
+from typing import Protocol, TypeVar
 
 from planner.model.expressions import Value
 from planner.model.semantics import State
+from planner.planning.operation_planner import OperationPlanner
+from planner.runner.actions import Action, Reply
+from planner.runner.answers import QueryAnswerer, QueryObserver
 from planner.runner.state import RunnerState
-from planner.runner.tick_io import Event
+from planner.runner.station_index import StationIndex
+from planner.runner.tick_io import Event, RunnerConfig
 from planner.runner.vocabulary import (
     INTENTION_LIFE_CYCLE,
     OPERATION_LIFE_CYCLE,
@@ -24,11 +28,6 @@ from planner.runner.vocabulary import (
     ReplanReason,
 )
 
-if TYPE_CHECKING:
-    from planner.runner.runner import Runner
-    from planner.runner.station_index import StationIndex
-
-
 _State = TypeVar("_State", IntentionState, OperationState)
 
 
@@ -36,10 +35,33 @@ class LifeCycleError(AssertionError):
     """A change of state its life cycle does not allow: a bug in the runner, never input."""
 
 
+class TickRunner(Protocol):
+    """What a phase may ask of the runner that ticks: its lookups and settings, whether a
+    state is bad, the operation planner's queries, and who answers and watches them.
+    `planner.runner.Runner` is one; the phases know it only through this."""
+
+    @property
+    def index(self) -> StationIndex: ...
+
+    @property
+    def config(self) -> RunnerConfig: ...
+
+    @property
+    def operation_planner(self) -> OperationPlanner: ...
+
+    @property
+    def planning(self) -> QueryAnswerer: ...
+
+    @property
+    def observer(self) -> QueryObserver | None: ...
+
+    def is_bad(self, state: State) -> bool: ...
+
+
 class Tick:
     """One tick's work on a private copy of the state."""
 
-    def __init__(self, runner: Runner, state: RunnerState, now: float) -> None:
+    def __init__(self, runner: TickRunner, state: RunnerState, now: float) -> None:
         self.runner = runner
         self.index: StationIndex = runner.index
         self.config = runner.config
@@ -63,6 +85,11 @@ class Tick:
         self, kind: EventKind, subject: str, millis: float | None = None, **detail: object
     ) -> None:
         self.events.append(Event(self.now, kind, subject, detail, millis))
+
+    def refuse(self, action: Action, subject: str, why: str) -> Reply:
+        """Refuse a person's action: a `refused` event about `subject`, and the reply."""
+        self.emit(EventKind.REFUSED, subject, user=action.user, why=why)
+        return Reply.refuse(action, subject, why)
 
     def current(self) -> State:
         """The live values as a state of the model."""

@@ -8,6 +8,8 @@ safely (`planner.runner.following.plan_reaches`); otherwise the plan's next step
 When no plan reaches the goal, each executing operation is planned for alone (seed 000
 Figure 6); those that cannot reach their goal go to error (all of them if each can alone)
 and count a failure, and the operation plan is made again without them.
+
+In restart mode `planner.runner.restart.follow_reset_plan` takes this phase's place.
 """
 
 from __future__ import annotations
@@ -22,7 +24,6 @@ from planner.runner.queries import (
     recovery_flags,
     transition_query,
 )
-from planner.runner.restart import follow_reset_plan
 from planner.runner.retries import count_failure, fail_operation, while_blocked
 from planner.runner.tick import Tick
 from planner.runner.vocabulary import PlanLevel, ReplanReason
@@ -30,9 +31,6 @@ from planner.runner.vocabulary import PlanLevel, ReplanReason
 
 def follow_transition_plan(tick: Tick) -> None:
     state = tick.state
-    if state.restart_mode:
-        follow_reset_plan(tick)
-        return
     executing = state.executing()
     if not executing:
         state.transition_plan = None

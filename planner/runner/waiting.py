@@ -73,7 +73,7 @@ def _stopped(runner: Runner, state: RunnerState) -> list[Waiting]:
             )
         )
     for effect in sorted(state.timed_out):
-        owner = runner.index.owner.get(effect, "")
+        owner = runner.station.owner_of(effect)
         on = f" on {owner}" if owner else ""
         out.append(
             Waiting(
@@ -128,7 +128,7 @@ def _devices(runner: Runner, state: RunnerState) -> list[Waiting]:
         for effect in sorted(plan.expected()):
             if index.kind_of(effect) is not TransitionKind.EFFECT:
                 continue
-            owner = index.owner.get(effect, "")
+            owner = index.station.owner_of(effect)
             if owner in state.unavailable:
                 continue  # said above
             who = Who.OPERATOR if effect in index.person_effects else Who.DEVICE

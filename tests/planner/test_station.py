@@ -29,6 +29,16 @@ def test_resource_variables_are_qualified(station: Station) -> None:
     assert names == ["bp1.state", "nr.run", "nr.running", "nr.torque", "r1.ref", "r1.pos"]
 
 
+def test_each_transition_and_variable_has_the_resource_it_belongs_to(station: Station) -> None:
+    assert station.owner_of("r1.goto_bp1") == "r1"
+    assert station.owner_of("r1.goto.arrive") == "r1"  # a generic effect
+    assert station.owner_of("nr.running") == "nr"
+    assert station.owner_of("bp1.state") == ""  # station-wide
+    assert station.owner_of("no.such.name") == ""
+    for resource in station.resources:
+        assert all(station.owner_of(t) == resource.name for t in resource.transitions)
+
+
 def test_abilities_are_instantiated_per_parameter_value(station: Station) -> None:
     goto = [a for a in station.abilities if a.template == "goto"]
     assert [a.qualified for a in goto] == ["r1.goto_home", "r1.goto_bp1"]

@@ -27,7 +27,8 @@ from starlette.types import Receive, Scope, Send
 from app.web import http_server
 from app.web.headers import SecurityHeaders
 from planner.bdd.symbolic import SymbolicModel
-from planner.model.expression_text import _resolve, parse_expr, parse_syntax
+from planner.model.expression_syntax import parse_syntax
+from planner.model.expression_text import _resolve, parse_expr
 from planner.model.expressions import MAX_NESTING, depth, format_expr, variables_of
 from planner.model.flat import Model
 from planner.model.semantics import compile_expr

@@ -76,8 +76,6 @@ class DeviceLogic:
         self._status = [r for r in self.register_map if r.kind is Kind.BITS]
         self._has_heartbeat = any(r.name == "heartbeat" for r in self.register_map)
 
-    # -- registers -------------------------------------------------------------------------------
-
     def __getitem__(self, name: str) -> int:
         """The raw value of a register, as a client would read it."""
         return self.raw[self.register_map.point(name)]
@@ -133,8 +131,6 @@ class DeviceLogic:
                         word |= 1 << bit
                 self.put(status.name, word)
 
-    # -- time ------------------------------------------------------------------------------------
-
     def step(self, now: float) -> None:
         """Acts up to time `now`."""
         if now < self.now:
@@ -167,8 +163,6 @@ class DeviceLogic:
             if isinstance(seconds, bool) or not isinstance(seconds, int | float) or seconds < 0:
                 raise ValueError(f"delay '{key}' is a number of seconds, not {seconds!r}")
             self.timing[key] = float(seconds)
-
-    # -- faults ----------------------------------------------------------------------------------
 
     def reset(self) -> None:
         """Clears the device's faults; stuck values show the truth again."""

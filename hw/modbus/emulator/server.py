@@ -106,8 +106,6 @@ class EmulatedDevice:
         if self.frozen_since is None:
             self.logic.step(self.clock())
 
-    # -- Modbus --------------------------------------------------------------------------------
-
     async def listen(self) -> None:
         server = ModbusTcpServer(
             self._sim_devices(), address=(self.spec.host, self.port), trace_packet=self._trace
@@ -212,8 +210,6 @@ class EmulatedDevice:
             return corrupt(frame, self.garbage_kind)
         return frame
 
-    # -- control -------------------------------------------------------------------------------
-
     async def set_network(self, mode: str) -> None:
         if mode not in NETWORK_MODES:
             raise ValueError(f"network mode is one of {', '.join(NETWORK_MODES)}, not {mode!r}")
@@ -299,9 +295,6 @@ class Emulator:
         device = self.devices[name]
         device.step()  # what the operation changes, it changes now
         return await self.ops[op](device, request)
-
-
-# -- the process ------------------------------------------------------------------------------
 
 
 async def serve(specs: Sequence[DeviceSpec], control: tuple[str, int], scale: float) -> None:

@@ -15,11 +15,10 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from dataclasses import dataclass, field
+from typing import Protocol
 
-if TYPE_CHECKING:
-    from hw.ur.emulator.robot import Controller
+from hw.ur.emulator.arm import Arm
 
 READY, DONE = 1, 2
 MOVE_J, MOVE_J_IK, MOVE_L, MOVE_L_FK = 1, 2, 3, 4
@@ -37,6 +36,41 @@ UNSUPPORTED = {
 ARRIVED = 1e-6
 _MARKERS = ("def rtde_control():", "# HEADER_BEGIN")
 _OFFSET = re.compile(r"reg_offset_int = # int register offset\n\s*(\d+)")
+
+
+@dataclass
+class Registers:
+    """The general-purpose RTDE registers, lower and upper range (0..47)."""
+
+    int_in: list[int] = field(default_factory=lambda: [0] * 48)
+    double_in: list[float] = field(default_factory=lambda: [0.0] * 48)
+    int_out: list[int] = field(default_factory=lambda: [0] * 48)
+    double_out: list[float] = field(default_factory=lambda: [0.0] * 48)
+    updated: dict[int, float] = field(default_factory=dict)
+    """When each input int register was last written (for the RTDE watchdog)."""
+
+
+class ScriptHost(Protocol):
+    """What the script uses of the controller that runs it (`controller.Controller` is one): its
+    registers, arm, clock and version, the tool and payload it sets, the protective stop."""
+
+    tcp: tuple[float, ...]
+    payload: float
+    payload_cog: tuple[float, ...]
+
+    @property
+    def registers(self) -> Registers: ...
+
+    @property
+    def arm(self) -> Arm: ...
+
+    @property
+    def clock(self) -> float: ...
+
+    @property
+    def version(self) -> tuple[int, int, int, int]: ...
+
+    def protective_stop(self) -> None: ...
 
 
 def parse_program(text: str) -> int | None:
@@ -70,14 +104,12 @@ class ControlScript:
     watchdog: float = 0.0
     started: float = 0.0
 
-    def start(self, ctrl: Controller) -> None:
+    def start(self, ctrl: ScriptHost) -> None:
         self.started = ctrl.clock
         self._progress(ctrl, -1)
         self._out_int(ctrl, 0, READY)
 
-    # -- the main loop, one controller cycle ------------------------------------------------------
-
-    def cycle(self, ctrl: Controller, now: float) -> str | None:
+    def cycle(self, ctrl: ScriptHost, now: float) -> str | None:
         """Runs one cycle; None to go on, else why the program ended ("" when asked to)."""
         if self.watchdog > 0:
             last = ctrl.registers.updated.get(self.offset, self.started)
@@ -107,7 +139,7 @@ class ControlScript:
             self._out_int(ctrl, 0, DONE)
         return outcome
 
-    def _process(self, ctrl: Controller, command: int) -> str | None:
+    def _process(self, ctrl: ScriptHost, command: int) -> str | None:
         regs = ctrl.registers
         double = regs.double_in[self.offset : self.offset + 8]
         asynchronous = regs.int_in[self.offset + 1] == 1
@@ -147,7 +179,7 @@ class ControlScript:
             return UNSUPPORTED.get(command, f"command {command} is not emulated")
         return None
 
-    def _move_j(self, ctrl: Controller, move: Move, asynchronous: bool) -> str | None:
+    def _move_j(self, ctrl: ScriptHost, move: Move, asynchronous: bool) -> str | None:
         values = (*move.goal, move.speed, move.acceleration)
         if not all(math.isfinite(x) for x in values) or move.speed <= 0 or move.acceleration <= 0:
             return f"movej with speed {move.speed} and acceleration {move.acceleration}"
@@ -161,7 +193,7 @@ class ControlScript:
             self.waiting = "move"
         return None
 
-    def _stop(self, ctrl: Controller, deceleration: float, asynchronous: bool) -> str | None:
+    def _stop(self, ctrl: ScriptHost, deceleration: float, asynchronous: bool) -> str | None:
         if not (math.isfinite(deceleration) and deceleration > 0):
             return f"stop with deceleration {deceleration}"
         self._stop_background(ctrl)
@@ -174,9 +206,7 @@ class ControlScript:
             self.waiting = "stop"
         return None
 
-    # -- motions in progress --------------------------------------------------------------------
-
-    def _finished(self, ctrl: Controller, kind: str) -> bool:
+    def _finished(self, ctrl: ScriptHost, kind: str) -> bool:
         if kind == "stop":
             return ctrl.arm.steady
         move = self.move
@@ -186,19 +216,19 @@ class ControlScript:
             and all(abs(q - g) <= ARRIVED for q, g in zip(ctrl.arm.q, move.goal, strict=True))
         )
 
-    def _follow_background(self, ctrl: Controller) -> None:
+    def _follow_background(self, ctrl: ScriptHost) -> None:
         if self.background and self._finished(ctrl, self.background):
             self.background = ""
             if not self.waiting:
                 self.move = None
             self._progress(ctrl, -1)
 
-    def _stop_background(self, ctrl: Controller) -> None:
+    def _stop_background(self, ctrl: ScriptHost) -> None:
         if self.background:
             self.background = ""
             self._progress(ctrl, -1)
 
-    def interrupt(self, ctrl: Controller, done: bool = False) -> None:
+    def interrupt(self, ctrl: ScriptHost, done: bool = False) -> None:
         """The motion ends where the arm is (protective stop, power off, a hand, the end).
 
         `done`: a synchronous move waiting for the arm counts as finished (a hand moved it),
@@ -210,7 +240,7 @@ class ControlScript:
         self.move = None
         self.waiting = ""
 
-    def resume_move(self, ctrl: Controller) -> None:
+    def resume_move(self, ctrl: ScriptHost) -> None:
         """A stalled move goes on."""
         move = self.move
         if move is not None:
@@ -220,9 +250,7 @@ class ControlScript:
     def move_in_progress(self) -> bool:
         return self.move is not None
 
-    # -- registers ------------------------------------------------------------------------------
-
-    def _progress(self, ctrl: Controller, value: int) -> None:
+    def _progress(self, ctrl: ScriptHost, value: int) -> None:
         self.writes = (self.writes + 1) % 128
         if value == 0:
             self.operation = (self.operation + 1) % 128
@@ -231,9 +259,9 @@ class ControlScript:
             word += min(value, 32767) + 32768
         self._out_int(ctrl, 2, word)
 
-    def _out_int(self, ctrl: Controller, register: int, value: int) -> None:
+    def _out_int(self, ctrl: ScriptHost, register: int, value: int) -> None:
         ctrl.registers.int_out[self.offset + register] = value
 
-    def _out_doubles(self, ctrl: Controller, values: tuple[float, ...] | list[float]) -> None:
+    def _out_doubles(self, ctrl: ScriptHost, values: tuple[float, ...] | list[float]) -> None:
         for k, value in enumerate(values):
             ctrl.registers.double_out[self.offset + k] = float(value)

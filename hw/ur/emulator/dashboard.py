@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from hw.ur.emulator.robot import Controller, RobotMode, RuntimeState, SafetyMode
+from hw.ur.emulator.controller import Controller, RobotMode, RuntimeState, SafetyMode
 
 GREETING = "Connected: Universal Robots Dashboard Server"
 PROGRAM = "rtde_control"

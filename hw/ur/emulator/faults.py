@@ -8,17 +8,34 @@ from __future__ import annotations
 
 import math
 from collections.abc import Awaitable, Callable
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
-from hw.ur.emulator.robot import RobotMode, RuntimeState, SafetyMode
-
-if TYPE_CHECKING:
-    from hw.ur.emulator.controller import Emulator
-
-Operation = Callable[["Emulator", dict[str, Any]], Awaitable[dict[str, Any]]]
+from hw.ur.emulator.controller import Controller, RobotMode, RuntimeState, SafetyMode
 
 
-async def handle(emulator: Emulator, request: dict[str, Any]) -> dict[str, Any]:
+class ControlledEmulator(Protocol):
+    """What the operations use of the emulator they act on (`server.Emulator` is one)."""
+
+    @property
+    def controller(self) -> Controller: ...
+
+    @property
+    def network(self) -> str: ...  # "", "silent" or "refuse"
+
+    @property
+    def frozen(self) -> dict[str, Any] | None: ...
+
+    def connection_counts(self) -> dict[str, int]: ...
+
+    async def set_network(self, down: bool, mode: str = "silent") -> None: ...
+
+    def freeze(self, on: bool) -> None: ...
+
+
+Operation = Callable[[ControlledEmulator, dict[str, Any]], Awaitable[dict[str, Any]]]
+
+
+async def handle(emulator: ControlledEmulator, request: dict[str, Any]) -> dict[str, Any]:
     operation = OPERATIONS.get(request["op"])
     if operation is None:
         raise ValueError(f"no operation {request['op']!r}; known: {', '.join(sorted(OPERATIONS))}")
@@ -41,7 +58,7 @@ def _flag(request: dict[str, Any], name: str = "on") -> bool:
     return value
 
 
-def faults(emulator: Emulator) -> list[str]:
+def faults(emulator: ControlledEmulator) -> list[str]:
     c = emulator.controller
     active = []
     if emulator.network:
@@ -57,7 +74,7 @@ def faults(emulator: Emulator) -> list[str]:
     return active
 
 
-async def state(emulator: Emulator, request: dict[str, Any]) -> dict[str, Any]:
+async def state(emulator: ControlledEmulator, request: dict[str, Any]) -> dict[str, Any]:
     c = emulator.controller
     script = c.script
     return {
@@ -79,17 +96,17 @@ async def state(emulator: Emulator, request: dict[str, Any]) -> dict[str, Any]:
     }
 
 
-async def network(emulator: Emulator, request: dict[str, Any]) -> dict[str, Any]:
+async def network(emulator: ControlledEmulator, request: dict[str, Any]) -> dict[str, Any]:
     await emulator.set_network(_flag(request, "down"), str(request.get("mode", "silent")))
     return {"faults": faults(emulator)}
 
 
-async def freeze(emulator: Emulator, request: dict[str, Any]) -> dict[str, Any]:
+async def freeze(emulator: ControlledEmulator, request: dict[str, Any]) -> dict[str, Any]:
     emulator.freeze(_flag(request))
     return {"faults": faults(emulator)}
 
 
-async def protective_stop(emulator: Emulator, request: dict[str, Any]) -> dict[str, Any]:
+async def protective_stop(emulator: ControlledEmulator, request: dict[str, Any]) -> dict[str, Any]:
     if _flag(request):
         emulator.controller.protective_stop()
     else:
@@ -97,22 +114,22 @@ async def protective_stop(emulator: Emulator, request: dict[str, Any]) -> dict[s
     return {"faults": faults(emulator)}
 
 
-async def stall(emulator: Emulator, request: dict[str, Any]) -> dict[str, Any]:
+async def stall(emulator: ControlledEmulator, request: dict[str, Any]) -> dict[str, Any]:
     emulator.controller.stall(_flag(request))
     return {"faults": faults(emulator)}
 
 
-async def push(emulator: Emulator, request: dict[str, Any]) -> dict[str, Any]:
+async def push(emulator: ControlledEmulator, request: dict[str, Any]) -> dict[str, Any]:
     emulator.controller.push(_joints(request.get("offset"), "offset"))
     return {"joints": list(emulator.controller.arm.q)}
 
 
-async def jog(emulator: Emulator, request: dict[str, Any]) -> dict[str, Any]:
+async def jog(emulator: ControlledEmulator, request: dict[str, Any]) -> dict[str, Any]:
     emulator.controller.jog(_joints(request.get("joints"), "joints"))
     return {"joints": list(emulator.controller.arm.q)}
 
 
-async def power(emulator: Emulator, request: dict[str, Any]) -> dict[str, Any]:
+async def power(emulator: ControlledEmulator, request: dict[str, Any]) -> dict[str, Any]:
     c = emulator.controller
     if not _flag(request):
         c.power_off()

@@ -3,7 +3,7 @@
 ur_rtde always connects to 30004, 29999 and 30003, so every emulated robot needs its own
 address (all of 127.0.0.0/8 is loopback on Linux).  `free_host` finds one whose three ports
 nobody holds (a stale emulator from an earlier run must not break the next); `emulate` starts
-`python -m hw.ur.emulator.controller` there and stops it when the block ends, also on failure.
+`python -m hw.ur.emulator.server` there and stops it when the block ends, also on failure.
 """
 
 from __future__ import annotations
@@ -60,7 +60,7 @@ def on_block(device_file_text: str, block: int) -> str:
 @contextlib.contextmanager
 def emulate(host: str, *args: str, timeout: float = 15.0) -> Iterator[EmulatorProcess]:
     """A running emulator on `host` for the duration of the block."""
-    emulator = start("hw.ur.emulator.controller", "--host", host, *args, timeout=timeout)
+    emulator = start("hw.ur.emulator.server", "--host", host, *args, timeout=timeout)
     try:
         yield emulator
     finally:

@@ -11,12 +11,11 @@ from __future__ import annotations
 
 import asyncio
 import logging
-from typing import TYPE_CHECKING, Any
+from collections.abc import Sequence
+from typing import Any, Protocol
 
 from hw.ur.emulator import rtde_wire as wire
-
-if TYPE_CHECKING:
-    from hw.ur.emulator.controller import Emulator
+from hw.ur.emulator.controller import Controller
 
 log = logging.getLogger(__name__)
 
@@ -24,8 +23,30 @@ MAX_BUFFERED = 1 << 16
 """Bytes queued for a client that does not read, beyond which data packages are dropped."""
 
 
+class RtdeHost(Protocol):
+    """What a connection uses of the emulator that accepted it (`server.Emulator` is one):
+    the controller, its cycle rate, the network fault, who owns which input variable."""
+
+    @property
+    def controller(self) -> Controller: ...
+
+    @property
+    def silent(self) -> bool: ...
+
+    @property
+    def cycle_rate(self) -> int: ...
+
+    def inputs_taken(self, session: RtdeSession, names: Sequence[str]) -> set[str]: ...
+
+    def claim_inputs(self, session: RtdeSession, names: Sequence[str]) -> None: ...
+
+    def release_inputs(self, session: RtdeSession) -> None: ...
+
+    def recipes_changed(self) -> None: ...
+
+
 class RtdeSession:
-    def __init__(self, emulator: Emulator, writer: asyncio.StreamWriter) -> None:
+    def __init__(self, emulator: RtdeHost, writer: asyncio.StreamWriter) -> None:
         self.emulator = emulator
         self.writer = writer
         self.protocol = 0

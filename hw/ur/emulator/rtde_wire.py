@@ -19,7 +19,7 @@ HEADER = struct.Struct(">HB")
 
 REQUEST_PROTOCOL_VERSION = ord("V")
 GET_URCONTROL_VERSION = ord("v")
-TEXT_MESSAGE = ord("M")
+TEXT_MESSAGE = ord("M")  # never sent by the emulator; listed with the protocol's other types
 DATA_PACKAGE = ord("U")
 SETUP_OUTPUTS = ord("O")
 SETUP_INPUTS = ord("I")
@@ -199,9 +199,6 @@ def split(buffer: bytearray) -> list[Message]:
     return messages
 
 
-# -- requests and answers ------------------------------------------------------------------------
-
-
 def protocol_version(payload: bytes) -> int:
     if len(payload) != 2:
         raise WireError("a protocol version request carries one uint16")
@@ -246,9 +243,6 @@ def success_answer(kind: int, ok: bool = True) -> bytes:
 
 def output_types(names: Sequence[str]) -> list[str]:
     return [OUTPUTS.get(name, NOT_FOUND) for name in names]
-
-
-# -- recipes -------------------------------------------------------------------------------------
 
 
 @dataclass(frozen=True)
@@ -307,8 +301,3 @@ def package_recipe_id(payload: bytes) -> int:
     if not payload:
         raise WireError("an empty data package")
     return payload[0]
-
-
-def input_package(recipe: Recipe, values: Mapping[str, Any]) -> bytes:
-    """What a client sends to write an input recipe (for tests and tools)."""
-    return recipe.pack(values)

@@ -13,8 +13,8 @@ from hw.pipelines import Nonsense
 from hw.ur.emulator import rtde_wire as wire
 from hw.ur.emulator.arm import Arm
 from hw.ur.emulator.control_script import parse_program
+from hw.ur.emulator.controller import Controller, RobotMode, RuntimeState
 from hw.ur.emulator.dashboard import answer
-from hw.ur.emulator.robot import Controller, RobotMode, RuntimeState
 from hw.ur.emulator.script_server import Programs
 from hw.ur.sample import reading_from
 
