@@ -234,7 +234,7 @@ class Play:
 
 class QueryReporter:
     """Reports every planning query of the runner as it starts and as it ends (a
-    `planner.runner.queries.QueryObserver`), and which were announced by a plan event.
+    `planner.runner.QueryObserver`), and which were announced by a plan event.
     A query that starts and never ends shows where a cut-off play hung."""
 
     def __init__(self, emit: Callable[[dict[str, Any]], None]) -> None:

@@ -28,7 +28,7 @@ from planner.model.flat import Model, SourceLocation, TransitionKind, VariableKi
 from planner.model.station import Station
 from planner.planning.query import PlanQuery, PlanResult, PlanStatus, State
 from planner.reading.yaml_reader import Diagnostic, ModelError, closest, scope_for
-from planner.runner.queries import QueryObserver
+from planner.runner import QueryObserver
 
 
 def main(argv: Sequence[str] | None = None, *, observer: QueryObserver | None = None) -> int:

@@ -18,8 +18,7 @@ from typing import TYPE_CHECKING
 
 from app.cli.common import UsageError, device_file, planner_for, read_station, remember_order
 from planner.model.station import Station
-from planner.runner import Event, EventKind
-from planner.runner.queries import QueryObserver
+from planner.runner import Event, EventKind, QueryObserver
 
 if TYPE_CHECKING:
     from app.serve import Built

@@ -107,8 +107,6 @@ class _Builder:
     def __init__(self, station: Station, run: Run, words: Wording) -> None:
         self.station, self.run, self.words = station, run, words
         self.written = {t.name: t.written for t in station.model.transitions}
-        self.owner = {t: r.name for r in station.resources for t in r.transitions}
-        self.owner.update({v: r.name for r in station.resources for v in r.variables})
         self.people = {r.name for r in station.resources if r.person}
         self.starts = {a.transitions[0]: a for a in station.abilities if a.transitions}
         self.bars: list[Bar] = []
@@ -156,18 +154,22 @@ class _Builder:
         found = losses(self.wastes, self.run.start, end)
         return Timeline(self.run, tuple(lanes), bars, tuple(marks), tuple(found))
 
+    def owner(self, name: str, default: str = "") -> str:
+        """The resource a transition or variable belongs to (`default` if none)."""
+        return self.station.owner_of(name) or default
+
     def mark(
         self, lane: str, time: float, kind: MarkKind, label: str, forbidden: bool = False
     ) -> None:
         self.marks.append(Mark(lane, time, kind, label, forbidden))
 
     def on_taken(self, h: Happening) -> None:
-        resource = self.owner.get(h.subject)
+        resource = self.owner(h.subject)
         controlled = h.detail.get("type") not in UNCONTROLLED
         if controlled:
             self.next_step(h.time, resource or "")
         ability = self.starts.get(h.subject)
-        if resource is None:
+        if not resource:
             return
         if not (controlled and ability is not None):
             self.on_effect(h)
@@ -178,7 +180,7 @@ class _Builder:
         self.running[resource] = _Open(resource, h.time, label, label, kind)
 
     def on_effect(self, h: Happening) -> None:
-        running = self.running.get(self.owner.get(h.subject, ""))
+        running = self.running.get(self.owner(h.subject, ""))
         if running is not None:
             running.last = h.time
 
@@ -193,7 +195,7 @@ class _Builder:
             self.bars.append(running.until(time if ended is None else ended))
 
     def on_timeout(self, h: Happening) -> None:
-        resource = self.owner.get(h.subject, h.resource)
+        resource = self.owner(h.subject, h.resource)
         waited = float(h.detail.get("waited", 0) or 0)
         what = self.words.transition(h.subject)
         self.close(resource, h.time, f"{what} timed out")
@@ -202,7 +204,7 @@ class _Builder:
         self.wastes.append(_Waste(Cause.TIMEOUT, cause, h.time - waited, until_next_step=True))
 
     def on_unexpected(self, h: Happening) -> None:
-        resource = self.owner.get(h.subject, h.resource)
+        resource = self.owner(h.subject, h.resource)
         if not resource:
             return
         attempt = self.running.get(resource)
@@ -234,7 +236,7 @@ class _Builder:
         text = str(h.detail.get("fault", h.subject))
         named = re.search(r"(?:resource|effect)=([\w.]+)", text)
         target = h.resource or (named.group(1) if named else "")
-        lane = self.owner.get(target, target) or PLANNING_LANE
+        lane = self.owner(target, target) or PLANNING_LANE
         self.mark(lane, h.time, MarkKind.FAULT, fault_words(text, self.words))
 
     def next_step(self, time: float, resource: str) -> None:
@@ -247,10 +249,10 @@ class _Builder:
                 waste.end = time
 
     def on_instruction(self, h: Happening) -> None:
-        person = self.owner.get(h.subject, h.resource or PLANNING_LANE)
+        person = self.owner(h.subject, h.resource or PLANNING_LANE)
         what = self.words.transition(h.subject)
         self.wait(h, person, BarKind.MAINTENANCE, what)
-        mended = {self.owner.get(v, "") for v in self.written.get(h.subject, ())}
+        mended = {self.owner(v, "") for v in self.written.get(h.subject, ())}
         for resource in sorted(mended - {"", person}):
             if (h.subject, resource) not in self.mending:
                 title = f"waits for {self.words.resource(person)}: {what}"
@@ -258,7 +260,7 @@ class _Builder:
                 self.mending[(h.subject, resource)] = wait
 
     def on_approval(self, h: Happening) -> None:
-        resource = self.owner.get(h.subject, h.resource or PLANNING_LANE)
+        resource = self.owner(h.subject, h.resource or PLANNING_LANE)
         what = self.words.transition(h.subject)
         self.wait(h, resource, BarKind.WAITS, f"waits for approval: {what}")
 

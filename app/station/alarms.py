@@ -162,7 +162,7 @@ def _timed_out(runner: Runner, state: RunnerState, words: Wording) -> list[Condi
             f"effect:{name}",
             Priority.LOW,
             f"{words.step(name)}: {what}",
-            runner.index.owner.get(name, ""),
+            runner.station.owner_of(name),
         )
         for name in sorted(state.timed_out)
     ]

@@ -28,11 +28,11 @@ from planner.runner import (
     EventKind,
     IntentionState,
     MaintenanceDone,
+    QueryObserver,
     Runner,
     RunnerState,
 )
 from planner.runner.answers import Delayed
-from planner.runner.queries import QueryObserver
 from planner.runner.waiting import waiting_for
 from planner.words import Wording
 

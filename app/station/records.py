@@ -105,19 +105,13 @@ def event_entry(runner: Runner, event: Event) -> AuditEntry:
 
 
 def resource_of(runner: Runner, event: Event) -> str:
-    """The resource an event concerns, for the auditor's filter ("" if none or several)."""
-    index = runner.index
-    subject = event.subject
-    if subject in index.resource_transitions:
+    """The resource an event concerns, for the auditor's filter ("" if none or several): the
+    resource itself, the owner of the transition or variable it is about."""
+    station, subject = runner.station, event.subject
+    if subject in runner.index.resource_transitions:
         return subject
-    owner = index.owner.get(subject)
-    if owner:
-        return owner
     variable = str(event.detail.get("variable", ""))
-    for resource in runner.station.resources:
-        if variable in resource.variables or subject in resource.variables:
-            return resource.name
-    return ""
+    return station.owner_of(subject) or station.owner_of(variable)
 
 
 def alarm_entry(change: AlarmChange) -> AuditEntry:

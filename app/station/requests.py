@@ -114,7 +114,7 @@ class InjectFault:
     def apply(self, running: Running, round_: Round) -> Answer:
         running.cycle.inject(self.fault)
         fault = self.fault
-        resource = fault.resource or running.runner.index.owner.get(fault.effect, "")
+        resource = fault.resource or running.model.station.owner_of(fault.effect)
         detail = {"fault": self.text}
         round_.record(AuditEntry(EventKind.FAULT, fault.kind, self.user, resource, detail))
         return settled(None)

@@ -13,7 +13,6 @@ from planner.model.expressions import Assign, Expr, conjunction, negation
 from planner.model.station import effect_as_goal
 from planner.planning.query import PlanQuery, PlanResult, PlanStatus
 from planner.runner.answers import Pending
-from planner.runner.answers import QueryObserver as QueryObserver  # app/ imports it from here
 from planner.runner.tick import Tick
 from planner.runner.vocabulary import EventKind, PlanLevel, RecoveryFlag, ReplanReason, plan_label
 

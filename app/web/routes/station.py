@@ -53,14 +53,13 @@ class ResourceRow:
 def overview_context(view: StationView) -> dict[str, Any]:
     """What the overview shows: one consistent round."""
     s, station, words = view.state, view.model.station, view.model.words
-    owner = view.runner.index.owner
     doing: dict[str, str] = {}
     for followed in (s.recovery, s.maintenance, s.transition_plan):
         if followed is None:
             continue
         for k in sorted(followed.taken - followed.done):
             transition = followed.blocks[k].transition
-            doing.setdefault(owner.get(transition, ""), words.transition(transition))
+            doing.setdefault(station.owner_of(transition), words.transition(transition))
     resources = [
         ResourceRow(
             r.name,
