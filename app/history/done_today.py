@@ -15,14 +15,15 @@ from app.store.db import Store
 from app.store.tables import AuditRecord
 from planner.model.station import Station
 from planner.runner import EventKind
+from planner.runner.vocabulary import PersonAct
 from planner.words import Wording, sentence
 
 # the records of a person's own taps on the task cards (app.station.live, planner.runner.people)
 _TASKS = {
-    "card done": "Done",
-    "maintenance done": "Done",
-    "approve": "Approved",
-    "reject": "Could not do / rejected",
+    PersonAct.CARD_DONE: "Done",
+    PersonAct.MAINTENANCE_DONE: "Done",
+    PersonAct.APPROVE: "Approved",
+    PersonAct.REJECT: "Could not do / rejected",
 }
 
 
@@ -84,7 +85,7 @@ def _task_words(words: Wording, cards: list[str], subject: str, detail: dict[str
     if transition:  # the person's own step by what it does, an approved one with its doer
         what = (
             words.transition(transition)
-            if subject == "maintenance done"
+            if subject == PersonAct.MAINTENANCE_DONE
             else words.step(transition)
         )
     elif card:
@@ -92,4 +93,4 @@ def _task_words(words: Wording, cards: list[str], subject: str, detail: dict[str
         what = f"the card {words.value_name(cards[0], card)}" if cards else words.text(card)
     else:
         what = "a task"
-    return f"{_TASKS[subject]}: {sentence(what)}"
+    return f"{_TASKS[PersonAct(subject)]}: {sentence(what)}"

@@ -26,6 +26,7 @@ from app.station.scenario import Scenario
 from app.store.audit import AuditEntry
 from hw.faults import Fault
 from planner.runner import Action, Event, EventKind, Reply
+from planner.runner.vocabulary import PersonAct
 
 T = TypeVar("T")
 
@@ -98,7 +99,9 @@ class ConfirmCard:
         person, watch = shown[0]
         done = running.devices.perform(watch.confirm)
         detail = {"card": str(self.card)}
-        round_.record(AuditEntry(EventKind.OPERATOR, "card done", self.user, person.name, detail))
+        round_.record(
+            AuditEntry(EventKind.OPERATOR, PersonAct.CARD_DONE, self.user, person.name, detail)
+        )
         return settled(done)
 
 

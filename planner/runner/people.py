@@ -26,7 +26,7 @@ from planner.runner.actions import (
 )
 from planner.runner.maintenance import pending_maintenance
 from planner.runner.tick import Tick
-from planner.runner.vocabulary import EventKind, IntentionState, ReplanReason
+from planner.runner.vocabulary import EventKind, IntentionState, PersonAct, ReplanReason
 
 
 def act(tick: Tick, action: Action) -> Reply:
@@ -60,12 +60,12 @@ def start_or_cancel(tick: Tick, action: StartIntention | CancelIntention) -> Rep
         state.auto_start.add(name)
         if current in (IntentionState.FINISHED, IntentionState.ERROR):
             tick.set_intention(name, IntentionState.INITIAL, "started again by " + who)
-        tick.emit(EventKind.OPERATOR, "start intention", user=who, intention=name)
+        tick.emit(EventKind.OPERATOR, PersonAct.START_INTENTION, user=who, intention=name)
     else:
         state.auto_start.discard(name)
         if current in (IntentionState.EXECUTING, IntentionState.ERROR):
             tick.set_intention(name, IntentionState.INITIAL, "cancelled")
-        tick.emit(EventKind.OPERATOR, "cancel intention", user=who, intention=name)
+        tick.emit(EventKind.OPERATOR, PersonAct.CANCEL_INTENTION, user=who, intention=name)
     return Reply.accept(action)
 
 
@@ -77,13 +77,17 @@ def approve_or_reject(tick: Tick, action: Approve | Reject) -> Reply:
         return tick.refuse(action, f"step {step}", "no such recovery step")
     transition = plan.blocks[step].transition
     if isinstance(action, Reject):
-        tick.emit(EventKind.OPERATOR, "reject", user=action.user, step=step, transition=transition)
+        tick.emit(
+            EventKind.OPERATOR, PersonAct.REJECT, user=action.user, step=step, transition=transition
+        )
         state.recovery = None  # plan again, without the rejected step
         state.relaxed = frozenset()
         state.rejected.add(transition)
         return Reply.accept(action)
     plan.approved.add(step)
-    tick.emit(EventKind.OPERATOR, "approve", user=action.user, step=step, transition=transition)
+    tick.emit(
+        EventKind.OPERATOR, PersonAct.APPROVE, user=action.user, step=step, transition=transition
+    )
     return Reply.accept(action)
 
 
@@ -101,7 +105,7 @@ def maintenance_done(tick: Tick, action: MaintenanceDone) -> Reply:
     if not chosen.guard(current):
         return tick.refuse(action, name, "its guard does not hold")
     tick.set_values(chosen.apply(current))
-    tick.emit(EventKind.OPERATOR, "maintenance done", user=action.user, transition=name)
+    tick.emit(EventKind.OPERATOR, PersonAct.MAINTENANCE_DONE, user=action.user, transition=name)
     tick.errors_may_clear = True
     plan = state.recovery if state.recovery is not None else state.maintenance
     if plan is not None:

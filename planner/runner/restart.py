@@ -25,6 +25,7 @@ from planner.runner.tick import Tick
 from planner.runner.vocabulary import (
     EventKind,
     OperationState,
+    PersonAct,
     PlanLevel,
     ReplanReason,
     RestartMove,
@@ -105,7 +106,7 @@ def reset_operation(tick: Tick, action: ResetOperation) -> Reply:
     if state.operations[name] != OperationState.INITIAL:
         tick.set_operation(name, OperationState.INITIAL, "reset by " + who)
     tick.replan_operations(ReplanReason.RESET)
-    tick.emit(EventKind.OPERATOR, "reset operation", user=who, operation=name)
+    tick.emit(EventKind.OPERATOR, PersonAct.RESET_OPERATION, user=who, operation=name)
     # seed 001 VIII-A: plan to reach its precondition, to start it again
     state.resetting.add(name)
     return Reply.accept(action)

@@ -108,6 +108,18 @@ class ReplanReason(StrEnum):
         return self in (ReplanReason.GOALS, ReplanReason.INTENTIONS)
 
 
+class PersonAct(StrEnum):
+    """The subject of an `operator` event: what a person did that the station took."""
+
+    START_INTENTION = "start intention"
+    CANCEL_INTENTION = "cancel intention"
+    APPROVE = "approve"  # a recovery step approved
+    REJECT = "reject"  # a recovery step rejected: "I cannot do this"
+    MAINTENANCE_DONE = "maintenance done"  # a maintenance step done by hand
+    RESET_OPERATION = "reset operation"  # restart mode
+    CARD_DONE = "card done"  # a tap on the watch's Done (the watch's effect, recorded by the app)
+
+
 class RestartMove(StrEnum):
     """The subject of a `restart` event: restart mode entered or left (seed 001 VIII-A)."""
 

@@ -17,6 +17,7 @@ from app.web.api.schemas import ActionAnswer, EventOut, RequestBody, events_out
 from app.web.deps import LiveDep, TasksCaller
 from app.web.limits import CARD_CHARS, MAX_STEP
 from planner.runner import Approve, Event, EventKind, MaintenanceDone, Reject
+from planner.runner.vocabulary import PersonAct
 
 router = APIRouter(prefix=PREFIX, tags=["tasks"], dependencies=BEARER)
 
@@ -85,7 +86,7 @@ async def card_done(
     if not done:
         raise StationError(f"card '{card}' cannot be confirmed now; the station is not ready")
     detail = {"user": caller.name, "card": card}
-    recorded = Event(live.view.now, EventKind.OPERATOR, "card done", detail)
+    recorded = Event(live.view.now, EventKind.OPERATOR, PersonAct.CARD_DONE, detail)
     return CardDoneOut(card=card, events=events_out([recorded]))
 
 
