@@ -144,18 +144,18 @@ class Show:
         self.simulated = simulated
         self.recent: deque[Event] = deque(maxlen=RECENT_EVENTS)
         self.updates: PageUpdates[StationView] = PageUpdates()
-        self.version = 0  # counts the views made: a page tells an old one from a new one
+        self.serial = 0  # counts the views made: a page tells an old one from a new one
         self.view = self.make(running, now)
 
     def __call__(self, running: Running, round_: Round) -> None:
         if round_.changed:
             self.recent.extend(round_.events)
-            self.version += 1
+            self.serial += 1
             self.view = self.make(running, round_.now)
 
     def make(self, running: Running, now: float) -> StationView:
         return StationView(
-            version=self.version,
+            serial=self.serial,
             now=now,
             model=running.model,
             runner=running.runner,

@@ -42,7 +42,7 @@ class ActiveModel:
 class StationView:
     """What pages read: replaced as a whole after every round, never changed in place."""
 
-    version: int
+    serial: int  # the views made before it: a page tells an old view from a new one
     now: float
     model: ActiveModel
     runner: Runner

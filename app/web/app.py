@@ -103,7 +103,7 @@ def create_app(srv: Server, secret: str) -> FastAPI:
         `since`, the `now` of an earlier answer; by default the last few thousand)."""
         view = srv.live.view
         loop = srv.live.loop_summary(since)
-        return {"ok": True, "version": view.version, "model": view.model.number, "loop": loop}
+        return {"ok": True, "version": view.serial, "model": view.model.number, "loop": loop}
 
     app.add_exception_handler(LoginRequired, _login_required)
     app.add_exception_handler(PasswordChangeRequired, _password_change)

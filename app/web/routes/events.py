@@ -33,7 +33,7 @@ async def events(request: Request, caller: OptionalCaller, live: LiveDep) -> Str
             return
         changes = live.subscribe()
         try:
-            yield f"retry: 1000\nevent: station\ndata: {live.view.version}\n\n"
+            yield f"retry: 1000\nevent: station\ndata: {live.view.serial}\n\n"
             # the badge only (static/js/hmi.js); "alarm" would re-fetch every alarm list
             yield f"event: badge\ndata: {_data(live, ALARMS)}\n\n"
             while not await request.is_disconnected():
@@ -53,6 +53,6 @@ async def events(request: Request, caller: OptionalCaller, live: LiveDep) -> Str
 def _data(live: LiveStation, kind: str) -> str:
     """The alarm event carries the badge's count and highest priority; others the version."""
     if kind != ALARMS:
-        return str(live.view.version)
+        return str(live.view.serial)
     count, priority = alarm_badge(live.view)
     return json.dumps({"count": count, "priority": priority})
