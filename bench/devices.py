@@ -1,6 +1,6 @@
 """The device layer on the demo's emulators: latency, the station loop's period, CPU per device.
 
-    python -m bench.devices [--seconds 30] [--rounds 20] [--output bench/results/devices.md]
+    python -m bench.devices [--seconds 30] [--rounds 20] [--cuts 3] [--output ...devices.md]
 
 Everything is real: the demo's device file moved to a free 127.0.N.x block, an emulator
 process per device, and the station's drivers on them (`StationDevices`: ur_rtde in a child
@@ -13,6 +13,9 @@ process per robot, pymodbus clients on the shared loop).  Measured, in this orde
    unlock, nr run <-> idle) until the Modbus emulator shows it;
 2. measurement to runner: from asking the emulator to change (a robot jogged to a named pose,
    the PLC's bp1.state set) until `StationDevices.read()`, called every 10 ms, reports it;
+   and a cut noticed: from cutting a device's network (its emulator goes silent) until its
+   link says it is not connected, against the device's heartbeat time-out (the tests assert
+   only that it happens and what it says: how soon depends on the machine's load);
 3. the station loop: the demo's runner on the devices (`StationCycle`), planning in a
    worker process beside the loop as the live station plans
    (`app.station.planning_worker`), intention assemble_engine started and the watch
@@ -54,6 +57,7 @@ from hw.device_file import load_devices
 from hw.device_file.spec import DeviceFile, DriverKind
 from hw.devices import DeviceReport
 from hw.emulator_kit.control import ControlError
+from hw.faults import Fault, FaultKind
 from hw.link import LinkStatus
 from hw.ur import driver_child
 from hw.ur.emulator.launch import free_block, on_block
@@ -262,6 +266,37 @@ def plc_to_runner(bench: Bench, rounds: int) -> list[float]:
                 samples.append(seen - began)
             pause()
     return samples
+
+
+CUT = ("r1", "r2", "r1_tc", "r2_tc", "r1_cam", "r2_cam", "nr")
+
+
+def cut_to_unavailable(bench: Bench, rounds: int) -> dict[str, list[float]]:
+    """Per device, seconds from cutting its network until its link says it is not connected;
+    each cut is mended and the link back before the next."""
+    devices = bench.emulated.devices
+    samples: dict[str, list[float]] = {name: [] for name in CUT}
+
+    def wait(connected: bool, name: str, began: float) -> float:
+        while devices.links()[name].connected is not connected:
+            if time.monotonic() - began > 60.0:
+                raise TimeoutError(f"{name} not {'back' if connected else 'cut'} within 60 s")
+            time.sleep(0.005)
+        return time.monotonic()
+
+    for _ in range(rounds):
+        for name in CUT:
+            began = time.monotonic()
+            devices.inject(Fault(FaultKind.DISCONNECT, resource=name))
+            samples[name].append(wait(False, name, began) - began)
+            devices.inject(Fault(FaultKind.RECONNECT, resource=name))
+            wait(True, name, time.monotonic())
+            pause()
+    return samples
+
+
+def time_out_of(bench: Bench, name: str) -> float:
+    return max(d.heartbeat_timeout for d in bench.devices.devices if d.resource == name)
 
 
 # -- 3, 4: the station loop, and CPU ---------------------------------------------------------------
@@ -559,23 +594,40 @@ class Measured:
     coil: list[float]
     robot_read: list[float]
     plc_read: list[float]
+    cut: dict[str, list[float]]  # device -> seconds until its cut was noticed
+    time_outs: dict[str, float]  # device -> its heartbeat time-out
     loop: LoopResult
 
 
-def measure(seconds: float, rounds: int) -> Measured:
+def measure(seconds: float, rounds: int, cuts: int = 3) -> Measured:
     with demo_station(answer_after=1.0) as bench:
         motion = command_to_motion(bench, rounds)
         coil = command_to_coil(bench, rounds)
         robot_read = robot_to_runner(bench, rounds)
         plc_read = plc_to_runner(bench, rounds)
+        cut = cut_to_unavailable(bench, cuts)
+        time_outs = {name: time_out_of(bench, name) for name in CUT}
         loop = station_loop(bench, seconds)
-    return Measured(motion, coil, robot_read, plc_read, loop)
+    return Measured(motion, coil, robot_read, plc_read, cut, time_outs, loop)
 
 
-def report(measured: Measured, seconds: float, rounds: int) -> str:
+def cut_rows(measured: Measured) -> list[str]:
+    """A cut is noticed when the driver's own time-out runs out: the heartbeat for a robot
+    (its timestamp stops), the request time-out or the heartbeat for a Modbus device."""
+    lines = []
+    for name, samples in measured.cut.items():
+        limit = measured.time_outs[name]
+        slack = 0.5  # a poll period and a supervisor wake-up or two
+        met = max(samples) <= limit + slack
+        lines.append(row(f"cut noticed, {name}", samples, f"<= {limit:g} s + {slack:g} s", met))
+    return lines
+
+
+def report(measured: Measured, seconds: float, rounds: int, cuts: int = 3) -> str:
     lines = [
         f"# Device layer benchmark\n\n`python -m bench.devices --seconds {seconds:g} "
-        f"--rounds {rounds}`, {time.strftime('%Y-%m-%d')}, {revision()}. Machine: {machine()}",
+        f"--rounds {rounds} --cuts {cuts}`, {time.strftime('%Y-%m-%d')}, {revision()}. "
+        f"Machine: {machine()}",
         "",
         "## Latency (emulated demo station on 127.0.N.x)",
         "",
@@ -591,6 +643,7 @@ def report(measured: Measured, seconds: float, rounds: int) -> str:
     ):
         met = max(samples) * 1000.0 < LATENCY_TARGET_MS
         lines.append(row(what, samples, target, met))
+    lines += cut_rows(measured)
     loop = measured.loop
     late = sum(1 for p in loop.periods if p * 1000.0 > LATE_MS)
     over = sum(1 for d in loop.durations if d >= PERIOD)
@@ -667,9 +720,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--seconds", type=float, default=30.0, help="station loop (%(default)s)")
     parser.add_argument("--rounds", type=int, default=20, help="latency samples (%(default)s)")
+    parser.add_argument("--cuts", type=int, default=3, help="cuts per device (%(default)s)")
     parser.add_argument("--output", type=Path, default=RESULTS / "devices.md", help="%(default)s")
     args = parser.parse_args()
-    text = report(measure(args.seconds, args.rounds), args.seconds, args.rounds)
+    text = report(
+        measure(args.seconds, args.rounds, args.cuts), args.seconds, args.rounds, args.cuts
+    )
     print(text)
     args.output.parent.mkdir(parents=True, exist_ok=True)
     args.output.write_text(text)

@@ -27,9 +27,10 @@ from starlette.types import Receive, Scope, Send
 from app.web import http_server
 from app.web.headers import SecurityHeaders
 from planner.bdd.symbolic import SymbolicModel
+from planner.model import expressions
 from planner.model.expression_syntax import parse_syntax
 from planner.model.expression_text import _resolve, parse_expr
-from planner.model.expressions import MAX_NESTING, depth, format_expr, variables_of
+from planner.model.expressions import MAX_NESTING, Expr, depth, format_expr, variables_of
 from planner.model.flat import Model
 from planner.model.semantics import compile_expr
 from planner.planning.bmc import _Encoding
@@ -210,14 +211,13 @@ def test_nesting_at_the_limit_works_everywhere(shape: str, tmp_path: Path) -> No
     assert "valid" in checked.stdout
 
 
-def test_a_long_flat_chain_is_one_level_and_loads_fast() -> None:
-    terms = 20_000  # 0.3 s here; 2.4 s while the tokenizer was quadratic
+def test_a_long_flat_chain_is_one_level() -> None:
+    """How its reading time grows with its length (it grew quadratically once): bench/reading.py."""
+    terms = 20_000
     for operator in ("&&", "||"):
         guard = f" {operator} ".join([ATOM] * terms)
-        started = time.perf_counter()
         with stack_budget(200):  # nothing recurses per term
             station = load_station(with_guard(guard), "long.yaml")
-        assert time.perf_counter() - started < 1.0
         expr = station.model.transition(TRANSITION).guard
         assert depth(expr) == 1 and len(expr.args) == terms  # type: ignore[union-attr]
         walk_everywhere(station.model, expr)
@@ -247,7 +247,10 @@ def test_the_depth_counted_while_resolving_is_the_depth_of_the_result(text: str)
     assert levels == depth(expr)
 
 
-def test_guards_naming_a_large_predicate_do_not_walk_it_each_time() -> None:
+def test_guards_naming_a_large_predicate_do_not_walk_it_each_time(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Counted, not timed: the nodes whose operands are looked at while the model is read."""
     big = " && ".join(f"v{i % 50}" for i in range(20_000))
     lines = ["station: s", "variables:", *(f"  - {{name: v{i}, domain: bool}}" for i in range(50))]
     lines += ["resources:", "  - name: r", "    variables:", "      - {name: x, domain: bool}"]
@@ -255,9 +258,18 @@ def test_guards_naming_a_large_predicate_do_not_walk_it_each_time() -> None:
     lines += ["        transitions:"]
     lines += [f'          - {{name: t{i}, guard: "big && x", actions: ["x := true"]}}'
               for i in range(1000)]  # fmt: skip
-    started = time.perf_counter()
+    looked_at = 0
+    operands = expressions._operands
+
+    def counted(node: Expr) -> tuple[Expr, ...]:
+        nonlocal looked_at
+        looked_at += 1
+        return operands(node)
+
+    monkeypatch.setattr(expressions, "_operands", counted)
     load_station("\n".join(lines) + "\n", "big.yaml")
-    assert time.perf_counter() - started < 3.0  # 0.5 s here; 6 s with a walk per guard
+    # the predicate's 20,000 operands a few times over, not once for each of the 1,000 guards
+    assert 20_000 <= looked_at < 5 * 20_000, looked_at
 
 
 def engineer(station: RunningStation) -> tuple[TestClient, str]:
@@ -529,6 +541,8 @@ def test_a_form_post_from_another_site_is_sent_back_to_the_station(
 # ---- 5. connections that never finish their request ----------------------------------------------
 
 LIMIT = 1.0  # the head timeout the tests serve with (10 s in `sp serve`)
+# closed by the time-out, not by keep-alive's 5 s, with room for a busy machine's late timer
+CLOSED_BY = LIMIT + 3.0
 
 
 def closed_after(sock: socket.socket, send: Callable[[], None] = lambda: None) -> float:
@@ -536,7 +550,7 @@ def closed_after(sock: socket.socket, send: Callable[[], None] = lambda: None) -
     `send` between reads."""
     started = time.monotonic()
     sock.settimeout(0.2)
-    while time.monotonic() - started < 3 * LIMIT + 2:
+    while time.monotonic() - started < 10 * LIMIT + 5:
         try:
             send()
             if sock.recv(65536) == b"":
@@ -563,11 +577,11 @@ def test_a_body_that_never_arrives_does_not_hold_the_connection(
     )
     with connect(url) as stalled:
         stalled.sendall(head + b"name=a")
-        assert closed_after(stalled) < LIMIT + 1.5
+        assert closed_after(stalled) < CLOSED_BY
     with connect(url) as trickle:  # a byte at a time does not extend it either
         trickle.sendall(head)
         body = iter(b"p" * 2000)
-        assert closed_after(trickle, lambda: trickle.sendall(bytes([next(body)]))) < LIMIT + 1.5
+        assert closed_after(trickle, lambda: trickle.sendall(bytes([next(body)]))) < CLOSED_BY
     with httpx.Client(base_url=url) as client:  # a whole request is answered as ever
         assert client.post("/login", data={"name": "a", "password": "b"}).status_code == 403
 
@@ -577,19 +591,19 @@ def test_connections_that_do_not_finish_a_request_head_are_closed(
 ) -> None:
     url = station.serve(head_timeout=LIMIT)
     with connect(url) as silent:
-        assert LIMIT * 0.8 < closed_after(silent) < LIMIT + 1.5
+        assert LIMIT * 0.8 < closed_after(silent) < CLOSED_BY
     with connect(url) as half:
         half.sendall(b"GET / HTTP/1.1\r\nHost: x\r\n")
-        assert closed_after(half) < LIMIT + 1.5
+        assert closed_after(half) < CLOSED_BY
     with connect(url) as trickle:  # a byte at a time does not extend the deadline
         header = iter(b"GET / HTTP/1.1\r\nHost: x\r\nX-Slow: " + b"y" * 1000)
-        assert closed_after(trickle, lambda: trickle.sendall(bytes([next(header)]))) < LIMIT + 1.5
+        assert closed_after(trickle, lambda: trickle.sendall(bytes([next(header)]))) < CLOSED_BY
     for then in (b"GET /healthz HTTP/1.1\r\nHost: x\r\n", b""):  # after a response too
         with connect(url) as kept:
             kept.sendall(b"GET /healthz HTTP/1.1\r\nHost: x\r\n\r\n")
             assert b"200 OK" in kept.recv(65536)
             kept.sendall(then)
-            assert closed_after(kept) < LIMIT + 1.5  # not keep-alive's 5 s
+            assert closed_after(kept) < CLOSED_BY
 
     # a request whose head is in is not timed: its body may take longer
     with connect(url) as slow:

@@ -3,7 +3,6 @@ never after the 30 s a 503 waits for, because queries run beside the loop."""
 
 from __future__ import annotations
 
-import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -39,14 +38,11 @@ def test_a_reject_is_answered_at_once_while_the_station_plans(slow: RunningStati
 
     slow.wait(lambda: bool(approvals()), 120)
     step = approvals()[0]["step"]
-    started = time.monotonic()
     rejected = client.post(f"/api/approvals/{step}", headers=operator, json={"decision": "reject"})
-    answered = time.monotonic() - started
     assert rejected.status_code == 200, rejected.text
-    assert answered < DELAY  # the round that took it did not wait for the new recovery plan
-    # while the worker plans the recovery again, the station answers other requests at once
-    started = time.monotonic()
+    # the answers came before the new recovery plan (it takes DELAY more): the round that took
+    # the reject did not wait for it, nor does the station's view meanwhile
     station = client.get("/api/station", headers=engineer)
-    assert station.status_code == 200 and time.monotonic() - started < DELAY
+    assert station.status_code == 200
     assert station.json()["plans"]["recovery"] is None  # the new plan is not there yet
     slow.wait(lambda: bool(approvals()), 60)  # then it is, with another step to approve

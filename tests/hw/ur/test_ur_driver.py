@@ -28,7 +28,7 @@ JOINTS = [0.1, -1.5, 1.4, -1.2, -1.5, 0.2]
 HEARTBEAT = 0.5
 
 
-def until(condition: Callable[[], bool], timeout: float = 5.0) -> bool:
+def until(condition: Callable[[], bool], timeout: float = 10.0) -> bool:
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         if condition():
@@ -79,7 +79,8 @@ def test_start_up_powers_the_robot_and_reads(healthy: Station) -> None:
     assert not reading.protective_stop and reading.steady
     status = healthy.driver.status()
     assert status.connected and status.error == ""
-    assert status.last_data is not None and time.monotonic() - status.last_data < 0.2
+    assert status.last_data is not None and status.last_data <= time.monotonic()
+    assert until(lambda: (healthy.driver.status().last_data or 0.0) > status.last_data)  # fresh
 
 
 def test_move_j_reaches_the_target_at_limited_speed(healthy: Station) -> None:
@@ -87,12 +88,10 @@ def test_move_j_reaches_the_target_at_limited_speed(healthy: Station) -> None:
     target[0] += 0.3
     started = time.monotonic()
     healthy.driver.move_j(target, 1.0, 4.0)
-    assert until(lambda: healthy.q() != pytest.approx(JOINTS), 1.0)
-    moved = time.monotonic() - started
+    assert until(lambda: healthy.q() != pytest.approx(JOINTS))
     assert until(lambda: healthy.q() == pytest.approx(target) and healthy.driver.latest().steady)
-    took = time.monotonic() - started
-    assert moved < 0.2  # command to motion
-    assert took >= 0.3 / 1.0 + 1.0 / 4.0 - 0.05
+    took = time.monotonic() - started  # command to motion is measured in bench/devices.py
+    assert took >= 0.3 / 1.0 + 1.0 / 4.0 - 0.05  # no faster than the speed limit allows
     healthy.driver.move_j(JOINTS, 1.0, 4.0)
     assert until(lambda: healthy.q() == pytest.approx(JOINTS))
 
@@ -103,11 +102,11 @@ def test_stop_j_and_set_tool(healthy: Station) -> None:
     assert healthy.op(op="state")["tcp"] == [0.0, 0.0, 0.2, 0.0, 0.0, 0.0]
     target = list(JOINTS)
     target[2] -= 1.0
-    healthy.driver.move_j(target, 0.5, 2.0)
-    time.sleep(0.4)
+    healthy.driver.move_j(target, 0.1, 2.0)  # ten seconds on the way: stopped long before
+    assert until(lambda: healthy.q()[2] < JOINTS[2] - 0.01)
     healthy.driver.stop_j()
-    assert until(lambda: healthy.driver.latest().steady, 2.0)
-    assert JOINTS[2] - 0.9 < healthy.q()[2] < JOINTS[2]
+    assert until(lambda: healthy.driver.latest().steady)
+    assert target[2] < healthy.q()[2] < JOINTS[2]  # where the stop found it
     healthy.driver.move_j(JOINTS, 1.0, 4.0)
     assert until(lambda: healthy.q() == pytest.approx(JOINTS))
 
@@ -126,12 +125,10 @@ def test_lost_data_makes_the_robot_unavailable_and_restarts(
 ) -> None:
     restarts = healthy.driver.status().restarts
     healthy.op(**fault)
-    started = time.monotonic()
-    assert until(lambda: not healthy.driver.available, 2.0)
-    assert time.monotonic() - started < HEARTBEAT + 0.3
+    assert until(lambda: not healthy.driver.available)  # how soon: bench/devices.py
     assert not healthy.driver.status().connected
     assert healthy.driver.status().error
-    assert until(lambda: healthy.driver.status().restarts > restarts, 3.0)
+    assert until(lambda: healthy.driver.status().restarts > restarts)
     healthy.op(**end)
     assert healthy.recovered(), healthy.driver.status()
 
@@ -145,7 +142,7 @@ def test_protective_stop_shows_and_commands_fail_until_unlocked(healthy: Station
     assert until(lambda: "refused" in healthy.driver.status().error)
     healthy.op(op="protective_stop", on=False)
     # the driver resumes the paused control script by itself once the stop is cleared
-    assert until(lambda: healthy.driver.latest().running, 3.0)
+    assert until(lambda: healthy.driver.latest().running)
     healthy.driver.stop_j()
     healthy.driver.move_j(JOINTS, 1.0, 4.0)
     assert until(lambda: healthy.q() == pytest.approx(JOINTS) and healthy.driver.latest().steady)
@@ -156,10 +153,10 @@ def test_a_stalled_move_never_finishes(healthy: Station) -> None:
     target = list(JOINTS)
     target[0] += 0.4
     healthy.driver.move_j(target, 1.0, 4.0)
-    time.sleep(0.6)
+    assert until(lambda: healthy.op(op="state")["goal"] == pytest.approx(target))
+    time.sleep(0.6)  # a move it would have finished by now
     assert healthy.driver.latest().steady
     assert healthy.q()[0] < target[0] - 0.1
-    assert healthy.op(op="state")["goal"] == pytest.approx(target)
     healthy.op(op="stall", on=False)
     assert until(lambda: healthy.q() == pytest.approx(target))
     healthy.driver.move_j(JOINTS, 1.0, 4.0)
@@ -171,7 +168,7 @@ def test_a_push_shows_and_nonsense_is_not_trusted(healthy: Station) -> None:
     healthy.op(op="push", offset=[0.05, 0, 0, 0, 0, 0])
     assert until(lambda: healthy.q()[0] == pytest.approx(JOINTS[0] + 0.05))
     healthy.op(op="push", offset=[100.0, 0, 0, 0, 0, 0])  # no UR joint turns that far
-    assert until(lambda: not healthy.driver.available, 1.0)
+    assert until(lambda: not healthy.driver.available)
     assert "nonsense" in healthy.driver.status().error
     assert healthy.q()[0] == pytest.approx(JOINTS[0] + 0.05)  # the last trusted reading
     healthy.op(op="jog", joints=JOINTS)
@@ -184,7 +181,7 @@ def test_a_killed_child_is_restarted(healthy: Station) -> None:
     child = healthy.driver._child
     assert child is not None and child.pid is not None
     os.kill(child.pid, signal.SIGKILL)
-    assert until(lambda: not healthy.driver.available, 2.0)
+    assert until(lambda: not healthy.driver.available)
     assert healthy.recovered(), healthy.driver.status()
     assert healthy.driver.status().restarts == restarts + 1
 
@@ -228,7 +225,7 @@ def test_no_robot_is_unavailable_and_close_leaves_no_process() -> None:
     )
     driver.start()
     try:
-        assert until(lambda: driver.status().restarts >= 1, 5.0)
+        assert until(lambda: driver.status().restarts >= 1, 20.0)
         assert not driver.available and driver.latest() is None
         assert driver.status().error
         child = driver._child
