@@ -16,11 +16,9 @@ import pytest
 from app.station.player import Planners, play
 from app.station.scenario import Scenario, load_scenario
 from planner.model.station import Station
-from planner.planning.operation_planner import OperationPlanner
 from planner.planning.query import PlanResult
-from planner.planning.transition_planner import TransitionPlanner
-from planner.reading import load_station
 from planner.runner import Event, EventKind, PlanLevel, RunnerState
+from tests.support import plays as shared_plays
 from tests.support.paths import REPOSITORY
 
 ROOT = REPOSITORY
@@ -38,22 +36,17 @@ CLASSES = {
 
 @pytest.fixture(scope="module")
 def demo() -> tuple[Station, Planners]:
-    station = load_station(MODEL.read_text(), str(MODEL))
-    return station, Planners(TransitionPlanner(station.model), OperationPlanner(station))
+    return shared_plays.demo()
 
 
 @pytest.fixture(scope="module")
-def plays(demo: tuple[Station, Planners]) -> Iterator[dict[str, tuple[Scenario, list[Event]]]]:
-    """Each scenario played once, lazily, for all the tests of this module."""
-    station, planners = demo
-    cache: dict[str, tuple[Scenario, list[Event]]] = {}
+def plays() -> Iterator[dict[str, tuple[Scenario, list[Event]]]]:
+    """Each scenario played once per test process, lazily (tests/support/plays.py)."""
 
     class Plays(dict[str, tuple[Scenario, list[Event]]]):
         def __missing__(self, name: str) -> tuple[Scenario, list[Event]]:
-            path = next(p for p in FAULTS if p.stem == name)
-            scenario = load_scenario(path.read_text(), str(path), station)
-            cache[name] = (scenario, list(play(station, scenario, planners)))
-            return cache[name]
+            once = shared_plays.played(name)
+            return once.scenario, once.events
 
     yield Plays()
 

@@ -31,6 +31,7 @@ from planner.runner import (
     SetEstimated,
 )
 from planner.runner.tick import Tick
+from tests.support import plays
 from tests.support.oracle import OracleModel, parse_model, state_from_dict
 from tests.support.paths import REPOSITORY
 
@@ -41,13 +42,20 @@ SCENARIOS = ROOT / "models" / "scenarios"
 
 @pytest.fixture(scope="module")
 def demo() -> tuple[Station, Planners]:
-    station = load_station(MODEL.read_text(), str(MODEL))
-    return station, Planners(TransitionPlanner(station.model), OperationPlanner(station))
+    return plays.demo()
+
+
+def shared(name: str) -> tuple[Scenario, list[Event], list[RunnerState]]:
+    """The scenario's one play in this test process (tests/support/plays.py)."""
+    once = plays.played(name, states=True)
+    assert once.states is not None
+    return once.scenario, once.events, once.states
 
 
 def run(
     demo: tuple[Station, Planners], name: str
 ) -> tuple[Scenario, list[Event], list[RunnerState]]:
+    """The scenario played again, on its own."""
     station, planners = demo
     path = SCENARIOS / f"{name}.yaml"
     scenario = load_scenario(path.read_text(), str(path), station)
@@ -86,7 +94,7 @@ def operator_work(events: list[Event]) -> list[str]:
 
 def test_nominal_assembly_finishes_without_errors(demo: tuple[Station, Planners]) -> None:
     station, planners = demo
-    _, events, states = run(demo, "nominal")
+    _, events, states = shared("nominal")
     assert events[-1].kind == "done"
     assert states[-1].intentions["assemble_engine"] == "f"
     assert not [e for e in events if e.kind in ("error", "unexpected", "timeout", "forbidden")]
@@ -115,7 +123,7 @@ def test_nominal_assembly_finishes_without_errors(demo: tuple[Station, Planners]
 def test_table_1_experiment_recovers_as_in_the_paper(
     demo: tuple[Station, Planners], name: str
 ) -> None:
-    scenario, events, states = run(demo, name)
+    scenario, events, states = shared(name)
     assert events[-1].kind == "done", [str(e) for e in events[-30:]]
     assert all(states[-1].intentions[i] == "f" for i in scenario.intentions or ())
     ours = recovery(events)
@@ -137,7 +145,7 @@ def test_table_1_experiment_recovers_as_in_the_paper(
 def test_a_different_effect_than_planned_is_an_error_event(
     demo: tuple[Station, Planners], name: str, happened: str, instead_of: str
 ) -> None:
-    _, events, _ = run(demo, name)
+    _, events, _ = shared(name)
     unexpected = [e for e in events if e.kind == "unexpected"]
     assert [(e.subject, e.detail["instead_of"]) for e in unexpected] == [(happened, [instead_of])]
 
@@ -147,7 +155,7 @@ def test_forbidden_state_recovery_waits_for_the_person_who_does_the_step(
 ) -> None:
     """E2's way out is the operator's own step (take the filters off): an instruction, not
     an approval; nothing moves until the operator reports it done."""
-    _, events, _ = run(demo, "e2_oil_filter_early")
+    _, events, _ = shared("e2_oil_filter_early")
     kinds = [e.kind for e in events]
     assert "approval" not in kinds
     asked = kinds.index("instruction")
@@ -163,8 +171,8 @@ def test_forbidden_state_recovery_waits_for_the_person_who_does_the_step(
 def test_replaying_the_same_scenario_gives_the_same_events(
     demo: tuple[Station, Planners],
 ) -> None:
-    _, first, _ = run(demo, "e8_camera_miss")
-    _, second, _ = run(demo, "e8_camera_miss")
+    _, first, _ = shared("e8_camera_miss")
+    _, second, _ = run(demo, "e8_camera_miss")  # with the planners' caches warm meanwhile
     assert first == second
 
 
@@ -202,7 +210,7 @@ def test_bad_scenarios_are_reported_with_file_line_column_and_entry(
 def test_restart_mode_resets_an_operation_with_a_restart_ability(
     demo: tuple[Station, Planners],
 ) -> None:
-    _, events, states = run(demo, "restart_robot_pushed")
+    _, events, states = shared("restart_robot_pushed")
     assert events[-1].kind == "done", [str(e) for e in events[-30:]]
     subjects = [(e.kind, e.subject) for e in events]
     entered = subjects.index(("restart", "entered"))

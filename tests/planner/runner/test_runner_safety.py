@@ -41,6 +41,7 @@ from planner.runner import (
 from planner.runner.following import plan_reaches, take
 from planner.runner.tick import Tick
 from planner.runner.vocabulary import INTENTION_LIFE_CYCLE, OPERATION_LIFE_CYCLE
+from tests.support import plays
 from tests.support.paths import MINI_STATION, REPOSITORY
 
 ROOT = REPOSITORY
@@ -342,13 +343,8 @@ def test_the_transition_planner_changes_no_decision_of_another_operation() -> No
 
 @pytest.fixture(scope="module")
 def scenario_events() -> dict[str, list[Event]]:
-    station = load_station(MODEL.read_text(), str(MODEL))
-    planners = Planners(TransitionPlanner(station.model), OperationPlanner(station))
-    out = {}
-    for path in SCENARIOS:
-        scenario = load_scenario(path.read_text(), str(path), station)
-        out[path.stem] = list(play(station, scenario, planners))
-    return out
+    """Every scenario's one play in this test process (tests/support/plays.py)."""
+    return {path.stem: plays.played(path.stem).events for path in SCENARIOS}
 
 
 def test_every_change_of_state_in_every_scenario_follows_its_life_cycle(

@@ -1,0 +1,68 @@
+"""The demo's scenarios, each played once per test process for every module that reads them.
+
+A play is deterministic (tests/planner/runner/test_runner.py replays one and compares), so
+the modules that check E1-E9, the fault scenarios and the runner's life cycles read the same
+events instead of playing each scenario again.  Nothing here may be changed by a test: the
+lists are shared.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+from pathlib import Path
+
+from app.station.player import Planners, play
+from app.station.scenario import Scenario, load_scenario
+from planner.model.station import Station
+from planner.planning.operation_planner import OperationPlanner
+from planner.planning.transition_planner import TransitionPlanner
+from planner.reading import load_station
+from planner.runner import Event, RunnerState
+from tests.support.paths import REPOSITORY
+
+MODEL = REPOSITORY / "models" / "demo_station.yaml"
+SCENARIOS = REPOSITORY / "models" / "scenarios"
+
+
+@dataclass(frozen=True)
+class Played:
+    scenario: Scenario
+    events: list[Event]
+    states: list[RunnerState] | None  # after each tick, when asked for
+
+
+@functools.cache
+def demo() -> tuple[Station, Planners]:
+    """The demo station and one pair of planners for every play of this process."""
+    station = load_station(MODEL.read_text(), str(MODEL))
+    return station, Planners(TransitionPlanner(station.model), OperationPlanner(station))
+
+
+_PLAYED: dict[str, Played] = {}
+
+
+def scenario_path(name: str) -> Path:
+    """`name` is a scenario's stem in models/scenarios/ or in models/scenarios/faults/."""
+    for folder in (SCENARIOS, SCENARIOS / "faults"):
+        if (folder / f"{name}.yaml").exists():
+            return folder / f"{name}.yaml"
+    raise KeyError(f"no scenario {name!r}")
+
+
+def played(name: str, *, states: bool = False) -> Played:
+    """The scenario's play, with the runner's state after each tick if `states` (kept only
+    when asked for: a long fault scenario has thousands of ticks)."""
+    known = _PLAYED.get(name)
+    if known is None or (states and known.states is None):
+        known = _PLAYED[name] = _play(name, states)
+    return known
+
+
+def _play(name: str, states: bool) -> Played:
+    station, planners = demo()
+    path = scenario_path(name)
+    scenario = load_scenario(path.read_text(), str(path), station)
+    seen: list[RunnerState] = []
+    events = list(play(station, scenario, planners, watch=seen.append if states else None))
+    return Played(scenario, events, seen if states else None)
