@@ -247,6 +247,10 @@ def test_protective_stop_fails_commands_until_unlocked(running: tuple[Robot, Any
     finally:
         dashboard.disconnect()
     assert not receive.isProtectiveStopped()
+    # the control interface reads the robot's state on its own RTDE connection: it sends a
+    # command only once it has seen the script run again, which may come after the receive
+    # interface saw it (a busy machine showed the gap)
+    assert until(control_interface.isProgramRunning)
     assert control_interface.moveJ(JOINTS, 0.5, 1.0)
 
 
