@@ -148,6 +148,7 @@ class ModbusDriver:
         self._wake: asyncio.Future[None] | None = None
         self._sent: tuple[bytes, int] = (b"", 0)  # the request's transaction id, function
         self._malformed = ""
+        self._ending = False
 
     def start(self) -> None:
         if self._loop is not None:
@@ -227,8 +228,10 @@ class ModbusDriver:
         self._task = asyncio.get_running_loop().create_task(self._run(), name=self.name)
 
     async def _end(self) -> None:
+        self._ending = True  # a cancellation the client swallows still ends the poll loop
         if self._task is not None:
             self._task.cancel()
+            self._poke()
             with contextlib.suppress(asyncio.CancelledError):
                 await self._task
 
@@ -253,7 +256,7 @@ class ModbusDriver:
         backoff = self.poll_period
         loop = asyncio.get_running_loop()
         try:
-            while True:
+            while not self._ending:
                 began = loop.time()
                 try:
                     if client is None:

@@ -3,6 +3,11 @@
 A loop per driver would cost a thread and a wake-up per poll each; one loop serves all of
 them, and costs nothing while no driver runs: the first `acquire` starts its thread, the
 last `release` stops it and joins it.
+
+Stopping is bounded: what the drivers left is cancelled again and again until it ends or
+`STOP_WAIT` passes (Python 3.11's `asyncio.wait_for` can swallow a cancellation that meets
+its inner future's completion, and pymodbus awaits through it), then the loop closes
+whatever is left, says what it was, and its thread ends.  A close never hangs the station.
 """
 
 from __future__ import annotations
@@ -10,6 +15,11 @@ from __future__ import annotations
 import asyncio
 import logging
 import threading
+
+STOP_WAIT = 3.0  # seconds for what the drivers left to end once cancelled
+RECANCEL = 0.1  # seconds between cancellations of what has not ended yet
+
+log = logging.getLogger(__name__)
 
 _lock = threading.Lock()
 _loop: asyncio.AbstractEventLoop | None = None
@@ -44,7 +54,9 @@ def release() -> None:
         loop, thread = _loop, _thread
         _loop = _thread = None
         loop.call_soon_threadsafe(loop.stop)
-        thread.join()
+        thread.join(STOP_WAIT + 2.0)
+        if thread.is_alive():
+            log.warning("the Modbus drivers' loop did not stop within %g s", STOP_WAIT + 2.0)
 
 
 def running() -> bool:
@@ -58,15 +70,29 @@ def _run(loop: asyncio.AbstractEventLoop, ready: threading.Event) -> None:
     loop.call_soon(ready.set)
     try:
         loop.run_forever()
-        # what the drivers left: cancel it and let it end, then close sockets and the loop
-        tasks = asyncio.all_tasks(loop)
-        for task in tasks:
-            task.cancel()
-        if tasks:
-            loop.run_until_complete(asyncio.gather(*tasks, return_exceptions=True))
+        # what the drivers left: cancel it until it ends, then close sockets and the loop
+        left = loop.run_until_complete(end_all(STOP_WAIT))
+        if left:
+            log.warning("Modbus tasks that did not end when cancelled: %s", ", ".join(left))
         loop.run_until_complete(loop.shutdown_asyncgens())
     finally:
         loop.close()
+
+
+async def end_all(within: float) -> list[str]:
+    """Cancels every other task of the running loop until it ends or `within` seconds
+    pass; the names of those that did not end."""
+    loop = asyncio.get_running_loop()
+    deadline = loop.time() + within
+    pending = asyncio.all_tasks(loop) - {asyncio.current_task(loop)}
+    while pending:
+        for task in pending:
+            task.cancel()
+        wait = min(RECANCEL, deadline - loop.time())
+        if wait <= 0:
+            break
+        _, pending = await asyncio.wait(pending, timeout=wait)
+    return sorted(task.get_name() for task in pending)
 
 
 def _quiet_pymodbus() -> None:

@@ -4,7 +4,9 @@ unavailable within its time-out and available again by itself, and nothing left 
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
+import logging
 import os
 import threading
 import time
@@ -278,3 +280,60 @@ def test_drivers_share_one_loop_thread_and_close_leaves_nothing(
     assert "modbus-drivers" not in [t.name for t in threading.enumerate()]
     assert socket_count() == before
     assert drivers[0].status().error == "closed"
+
+
+async def swallows_cancellations(times: int, started: threading.Event) -> None:
+    """A task that goes on after its first `times` cancellations, as a coroutine does when
+    `asyncio.wait_for` swallows one (Python 3.11)."""
+    started.set()
+    for _ in range(times):
+        with contextlib.suppress(asyncio.CancelledError):
+            await asyncio.sleep(3600)
+    await asyncio.sleep(3600)
+
+
+def test_the_last_release_ends_a_task_that_swallowed_a_cancellation() -> None:
+    started = threading.Event()
+    shared = loop.acquire()
+    asyncio.run_coroutine_threadsafe(swallows_cancellations(1, started), shared)
+    assert started.wait(5)
+    loop.release()
+    assert not loop.running()
+    assert "modbus-drivers" not in [t.name for t in threading.enumerate()]
+
+
+def test_a_task_that_never_ends_is_named_and_the_loop_still_stops(
+    monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    monkeypatch.setattr(loop, "STOP_WAIT", 0.5)
+    started = threading.Event()
+    shared = loop.acquire()
+    future = asyncio.run_coroutine_threadsafe(swallows_cancellations(10**6, started), shared)
+    assert started.wait(5)
+    with caplog.at_level(logging.WARNING, logger="hw.modbus.loop"):
+        loop.release()
+    assert not loop.running()
+    assert "did not end when cancelled" in caplog.text
+    assert not future.done() or future.cancelled()
+
+
+def test_a_driver_whose_poll_swallows_its_cancellation_still_closes(
+    emulator: EmulatorProcess, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # the poll's pause swallows one cancellation, as pymodbus's wait_for can
+    original = ModbusDriver._pause
+
+    async def pause(self: ModbusDriver, seconds: float) -> None:
+        with contextlib.suppress(asyncio.CancelledError):
+            await original(self, seconds)
+
+    monkeypatch.setattr(ModbusDriver, "_pause", pause)
+    name, registers = next(iter(DEVICES.items()))
+    driver = ModbusDriver(name, HOST, emulator.ports[name], 1, [r.point for r in registers])
+    driver.start()
+    until(lambda: driver.available)
+    driver.close()
+    assert not loop.running()
+    assert driver.status().error == "closed"
+    # it ended by itself, not by the loop's last round of cancellations
+    assert driver._task is not None and driver._task.done() and not driver._task.cancelled()
