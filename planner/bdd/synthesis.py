@@ -20,8 +20,8 @@ from dataclasses import dataclass
 
 from planner.bdd.symbolic import Function, SymbolicModel, SymbolicTransition
 from planner.model.coupling import Groups, touched
-from planner.model.expressions import Equals, variables_of
-from planner.model.flat import Model, Specification, TransitionKind
+from planner.model.expressions import Equals, Expr, variables_of
+from planner.model.flat import UNCONTROLLABLE, Model, Specification, TransitionKind
 
 # states are counted over at most this many bits: CUDD counts in doubles, which overflow
 # beyond 2^1024 (the supervisor's guards, the planners' statistics, `sp check`)
@@ -153,6 +153,31 @@ class _Closure:
                 closure |= step.preimage(sym, closure) & self.free
             if closure == before:
                 return closure
+
+
+def breaking(sym: SymbolicModel, predicate: Expr) -> Function:
+    """The states where `predicate` is false, or from which a chain of automatic and effect
+    steps leads to one: what a plan must avoid to keep `predicate` whatever the world does
+    (a causal link, `PlanQuery.kept`), as the bad states are for the specifications.
+
+    Closed over the uncontrollable transitions that can change what it reads, and what
+    their guards read, to a fixpoint; the closure over fewer automatics than the whole
+    model's lets effects happen in a few states where an automatic would go first, which
+    only widens the set (the plan stays safe)."""
+    uncontrollable = [t for t in sym.model.transitions if t.kind in UNCONTROLLABLE]
+    cone = set(variables_of(predicate))
+    chosen: dict[str, None] = {}
+    changed = True
+    while changed:
+        changed = False
+        for t in uncontrollable:
+            if t.name not in chosen and t.written & cone:
+                chosen[t.name] = None
+                reads = variables_of(t.guard) | {a.source for a in t.actions if a.source}
+                cone |= reads | t.written
+                changed = True
+    close = _Closure(sym, chosen, valid_codes(sym, cone))
+    return close(~sym.expr(predicate))
 
 
 def valid_codes(sym: SymbolicModel, variables: Iterable[str]) -> Function:

@@ -80,6 +80,9 @@ class Operation:
     actions: tuple[Assign, ...] = ()
     description: str = ""
     display: str = ""  # its name for people, the value's words filled in (planner.words)
+    # the model's estimate of how long it takes, in seconds, until the station has learned
+    # it from its own runs (None: no estimate)
+    duration: float | None = None
 
     def planning_goal(self, values: Mapping[str, Value]) -> Expr:
         """The transition planner's goal: `goal` and the effects evaluated in `values`."""

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from pysat.solvers import Cadical195
 
 from planner.bdd.symbolic import Function, SymbolicModel, SymbolicTransition
+from planner.bdd.synthesis import breaking
 from planner.model.expressions import And, BoolVar, Const, Equals, Expr, Implies, Not, Or, SameValue
 from planner.model.flat import TransitionKind
 from planner.planning.query import PlanQuery, PlanResult, PlanStatus, State
@@ -194,6 +195,14 @@ class BoundedModelChecker:
     def __init__(self, sym: SymbolicModel, bad: Function) -> None:
         self.sym = sym
         self.bad_circuit = BddCircuit(sym, bad)
+        self._breaking: dict[Expr, BddCircuit] = {}
+
+    def breaking(self, predicate: Expr) -> BddCircuit:
+        """Where `predicate` (kept) can be broken, as a circuit (`synthesis.breaking`)."""
+        found = self._breaking.get(predicate)
+        if found is None:
+            found = self._breaking[predicate] = BddCircuit(self.sym, breaking(self.sym, predicate))
+        return found
 
     def plan(self, query: PlanQuery) -> PlanResult:
         if query.relaxed:
@@ -244,6 +253,7 @@ class BoundedModelChecker:
         for lit in [
             -enc.circuit(self.bad_circuit, step),
             *(-enc.lit(f, step) for f in query.forbidden),
+            *(-enc.circuit(self.breaking(k), step) for k in query.kept),
         ]:
             enc.add([lit])
             if step == 0 and lit == -enc.true:

@@ -27,6 +27,11 @@ class PlanQuery:
     every state before the goal is reached (an intention's `phi U goal`); `disabled`
     transitions are removed for this query (timed-out effects, unavailable resources).
 
+    `kept` are predicates the plan keeps true whatever the world does: every state of the
+    plan satisfies them, and none is one from which automatic and effect steps can make
+    one false (the causal links of the operations that come next, `planner.runner.links`:
+    a robot that leaves the camera's pose lets the camera forget by itself).
+
     `relaxed` names specifications dropped for forbidden-state recovery (seed 000 sec. 4.6):
     the plan may pass through states that violate them, but never through a state that is
     bad for any other specification (the supervisor of the others keeps holding while the
@@ -37,6 +42,10 @@ class PlanQuery:
     the fewest steps, a maintenance step costing c and every other step 1 (ties: the fewer
     maintenance steps): a person is not asked to move a robot by hand that can move itself
     in a few steps more.  The default 1 is section 8's minimal plan.
+
+    `durations` (operation planning only): seconds per operation.  Among the plans of the
+    minimal length the operation planner then prefers one of the least expected makespan
+    in the partial order (`planner.planning.makespan`); without them it takes the first.
     """
 
     start: State
@@ -46,8 +55,10 @@ class PlanQuery:
     forbidden: tuple[Expr, ...] = ()
     always: Expr | None = None
     disabled: frozenset[str] = frozenset()
+    kept: tuple[Expr, ...] = ()
     relaxed: frozenset[str] = frozenset()
     maintenance_cost: int = 1
+    durations: tuple[tuple[str, float], ...] = ()
 
 
 @dataclass(frozen=True)

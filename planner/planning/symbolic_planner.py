@@ -18,7 +18,7 @@ from dataclasses import dataclass, replace
 
 from planner.bdd.sifting import blocks as sifting_blocks
 from planner.bdd.symbolic import Function, SymbolicModel, SymbolicTransition
-from planner.bdd.synthesis import COUNTABLE_BITS
+from planner.bdd.synthesis import COUNTABLE_BITS, breaking
 from planner.model.expressions import Expr, Value, conjunction, conjuncts, variables_of
 from planner.model.flat import TransitionKind
 from planner.model.semantics import Predicate, Semantics, compile_expr
@@ -89,6 +89,7 @@ class SymbolicPlanner:
         self._predicates: dict[Expr, Predicate] = {}
         self._readers: dict[int, list[int]] | None = None
         self._relaxed: dict[frozenset[str], Function] = {}
+        self._broken: dict[Expr, Function] = {}
         self._symmetries: tuple[Symmetry, ...] | None = None
         self._swapper_cache: dict[tuple[str, frozenset[str]], Swapper] = {}
 
@@ -169,6 +170,8 @@ class SymbolicPlanner:
             allowed = self.good
         for predicate in query.forbidden:
             allowed &= ~sym.expr(predicate)
+        for predicate in query.kept:
+            allowed &= ~self._breaking(predicate)
         always = sym.expr(query.always) if query.always is not None else sym.true
         return _Sets(
             self.usable(query),
@@ -178,6 +181,16 @@ class SymbolicPlanner:
             conjuncts(query.goal),
             bool(query.relaxed),
         )
+
+    def _breaking(self, predicate: Expr) -> Function:
+        """`synthesis.breaking`, kept: the next operations' links recur tick after tick."""
+        found = self._broken.get(predicate)
+        if found is None:
+            found = breaking(self.sym, predicate)
+            if len(self._broken) > 256:
+                self._broken.clear()
+            self._broken[predicate] = found
+        return found
 
     def _relaxed_at(self, query: PlanQuery) -> frozenset[str]:
         """The dropped specifications and those the start is already bad for: a recovery
@@ -227,6 +240,7 @@ class SymbolicPlanner:
             predicates.extend(conjuncts(query.always))
         for forbidden in query.forbidden:
             predicates.extend(allowed_conjuncts(forbidden))
+        predicates.extend(query.kept)
         usable_names = frozenset(t.name for t in sets.usable)
         if self.reductions.parts:
             components = self.structure.components(usable_names, predicates)

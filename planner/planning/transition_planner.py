@@ -19,6 +19,7 @@ from planner.bdd.synthesis import (
     bad_by_specification,
     bad_parts,
     bad_states,
+    breaking,
     violated_by,
 )
 from planner.model.expressions import TRUE, variables_of
@@ -157,11 +158,15 @@ class TransitionPlanner:
         )
 
     def violated(self, query: PlanQuery) -> list[str]:
-        """Why a start state is bad: the specifications it is bad for, then forbidden[i]."""
+        """Why a start state is bad: the specifications it is bad for, then forbidden[i] and
+        kept[i]."""
         start = self.sym.state(query.start)
         names = sorted(violated_by(self.sym, start)) if start & self.bad != self.sym.false else []
         index = self.model.variable_index
         for i, predicate in enumerate(query.forbidden):
             if compile_expr(predicate, index)(query.start):
                 names.append(f"forbidden[{i}]")
+        for i, predicate in enumerate(query.kept):
+            if start & breaking(self.sym, predicate) != self.sym.false:
+                names.append(f"kept[{i}]")
         return names

@@ -29,6 +29,7 @@ _OPERATION_KEYS = (
     "effects",
     "goal",
     "actions",
+    "duration",
 )
 _INTENTION_KEYS = ("name", "description", "display", "precondition", "goal", "always", "actions")
 
@@ -119,6 +120,7 @@ def _read_operation(
     what = f"operation '{template}'"
     display = read_display(reader, fields, what, [parameter.name] if parameter else [])
     words = parameter.words if parameter else {}
+    duration = _duration(reader, fields, what)
     result = []
     for name, values in instances:
         where = f"operation '{name}'"
@@ -139,10 +141,25 @@ def _read_operation(
             display,
             parameter_words(words, values),
         )
-        result.append(
-            Operation(name, pre, effects, goal, actions, filled(description, values), shown)
-        )
+        described = filled(description, values)
+        result.append(Operation(name, pre, effects, goal, actions, described, shown, duration))
     return result
+
+
+def _duration(reader: Reader, fields: Fields, what: str) -> float | None:
+    """`duration`: the model's estimate in seconds, a number above 0."""
+    if "duration" not in fields:
+        return None
+    node = fields["duration"][1]
+    text = reader.scalar(node, f"the duration of {what}")
+    try:
+        seconds = float(text) if text is not None else None
+    except ValueError:
+        seconds = None
+    if seconds is None or not 0 < seconds < float("inf"):
+        reader.error(node, f"the duration of {what} is seconds, a number above 0, not {text!r}")
+        return None
+    return seconds
 
 
 def _read_intention(

@@ -163,3 +163,19 @@ def test_the_operation_planner_sequences_operations_for_the_intentions(
 def test_duplicate_operation_names() -> None:
     messages = broken("values: [bp1]}\n    precondition", "values: [bp1, bp1]}\n    precondition")
     assert any("duplicate operation name 'tighten_bp1'" in m for m in messages)
+
+
+def test_an_operation_s_duration_is_seconds_above_zero() -> None:
+    text = MINI.read_text().replace(
+        'effects: ["{bolt}.state := placed"]',
+        'effects: ["{bolt}.state := placed"]\n    duration: 4.5',
+    )
+    assert load_station(text, "station.yaml").operation("place_bp1").duration == 4.5
+    assert load_station(MINI.read_text(), "station.yaml").operation("place_bp1").duration is None
+    for bad in ("0", "-1", "soon", ".inf"):
+        (message,) = broken(
+            'effects: ["{bolt}.state := placed"]',
+            f'effects: ["{{bolt}}.state := placed"]\n    duration: {bad}',
+        )
+        assert message.startswith("station.yaml:55:15: the duration of operation 'place_{bolt}'")
+        assert "a number above 0" in message

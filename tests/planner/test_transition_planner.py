@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import pytest
@@ -9,7 +10,9 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from planner.bdd.synthesis import breaking
 from planner.model.expression_text import parse_expr
+from planner.model.expressions import Expr
 from planner.model.flat import Model, TransitionKind
 from planner.model.semantics import Semantics
 from planner.planning.query import PlanQuery, PlanStatus
@@ -17,7 +20,7 @@ from planner.planning.transition_planner import TransitionPlanner
 from planner.reading import load_model
 from planner.reading.yaml_reader import ModelError, scope_for
 from tests.support import oracle as O
-from tests.support.strategies import flat_models, queries, query_extensions
+from tests.support.strategies import flat_models, queries, query_extensions, random_atom
 
 SETTINGS = settings(
     max_examples=200,
@@ -85,6 +88,59 @@ def test_plans_are_minimal_legal_and_agree_with_the_oracle(data: st.DataObject) 
             assert len(result.states) == result.length + 1
         elif result.status is PlanStatus.BAD_START:
             assert list(result.violated) == expected.violated, engine
+
+
+@SETTINGS
+@given(data=st.data())
+def test_plans_keep_what_they_are_told_to_keep(data: st.DataObject) -> None:
+    """`PlanQuery.kept` (the causal links of the next operations, planner.runner.links):
+    no state of a plan is one from which the world alone breaks a kept predicate.  The
+    planners close each predicate over the uncontrollable transitions that can reach what it
+    reads, which may keep out a few states more than the exact closure over the whole
+    model: their plans avoid the oracle's states exactly, they never find a plan the oracle
+    says does not exist, and both engines give the same answer."""
+    model_dict = data.draw(flat_models())
+    planner = _planner_or_cycle(model_dict)
+    if planner is None:
+        return
+    oracle_model = O.parse_model(model_dict)
+    q = data.draw(queries(model_dict))
+    start = O.state_from_dict(oracle_model, q["start"])
+    atoms = data.draw(st.lists(random_atom(model_dict["variables"]), min_size=1, max_size=3))
+    held = [a for a in atoms if O.evaluate(oracle_model, a, start)]
+    kept = tuple(held[:2] or atoms[:1])
+    ext = {"forbidden": [], "phi": None, "disabled": [], "max_steps": 8}
+    query = replace(_query(planner.model, q, ext), kept=_parsed(planner.model, kept))
+    expected = O.plan(
+        oracle_model, start, q["goal"], max_steps=8, maintenance=q["maintenance"], kept=kept
+    )
+    broken = [O.breaking(oracle_model, k) for k in kept]
+    results = {engine: planner.plan(query, engine=engine) for engine in ("bdd", "sat")}
+    assert results["bdd"].status == results["sat"].status
+    assert results["bdd"].length == results["sat"].length
+    for engine, result in results.items():
+        if expected.status == "unreachable":
+            assert result.status is not PlanStatus.FOUND, engine
+        if expected.status == "bad_start":
+            assert result.status is PlanStatus.BAD_START, engine
+            assert set(expected.violated) <= set(result.violated), engine
+        if result.status is PlanStatus.FOUND:
+            assert expected.status == "found" and expected.length is not None, engine
+            assert result.length >= expected.length, engine
+            problem = O.replay(
+                oracle_model, start, list(result.plan), q["goal"], maintenance=q["maintenance"]
+            )
+            assert problem is None, f"{engine}: {problem}"
+            for state in result.states:
+                assert not any(state in b for b in broken), (engine, state)
+    for k, states in zip(kept, broken, strict=True):  # the planners' closure covers the exact one
+        closure = breaking(planner.sym, parse_expr(k, scope_for(planner.model.domains)))
+        assert all(planner.sym.contains(closure, s) for s in states), k  # type: ignore[arg-type]
+
+
+def _parsed(model: Model, texts: tuple[str, ...]) -> tuple[Expr, ...]:
+    scope = scope_for(model.domains)
+    return tuple(parse_expr(t, scope) for t in texts)
 
 
 @SETTINGS

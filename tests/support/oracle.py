@@ -521,6 +521,15 @@ def bad_for_spec(m: OracleModel, spec_name: str) -> frozenset[State]:
     return m._bad[spec_name]
 
 
+def breaking(m: OracleModel, kept: str) -> frozenset[State]:
+    """States where ``kept`` is false or from which uncontrollable steps make it false (the
+    states a plan that keeps it avoids, ``PlanQuery.kept``): exact, over the whole model."""
+    key = f"kept: {kept}"
+    if key not in m._bad:
+        m._bad[key] = _backward_closure(m, (Spec(key, kept, _pred(m, kept)),))
+    return m._bad[key]
+
+
 def violated(m: OracleModel, s: State) -> list[str]:
     """Sorted names of the specs that, each on its own, make ``s`` bad."""
     return sorted(sp.name for sp in m.specs if s in bad_for_spec(m, sp.name))
@@ -610,6 +619,20 @@ def _rules(
     )
 
 
+def _keeping(m: OracleModel, rules: _Rules, kept: tuple[str, ...]) -> _Rules:
+    """``rules`` that also avoid the states breaking each of ``kept`` (``kept[i]``)."""
+    if not kept:
+        return rules
+    broken = [breaking(m, k) for k in kept]
+
+    def reasons(s: State) -> list[str]:
+        return rules.reasons(s) + [f"kept[{i}]" for i, b in enumerate(broken) if s in b]
+
+    return _Rules(
+        lambda s: rules.allowed(s) and not any(s in b for b in broken), rules.accepts, reasons
+    )
+
+
 def plan(
     m: OracleModel,
     start: State,
@@ -622,6 +645,7 @@ def plan(
     disabled: frozenset[str] = frozenset(),
     relaxed: frozenset[str] = frozenset(),
     maintenance_cost: int = 1,
+    kept: tuple[str, ...] = (),
 ) -> OracleResult:
     """Breadth-first search for a minimal plan of at most ``max_steps`` steps.
 
@@ -636,7 +660,7 @@ def plan(
     _check_disabled(m, disabled)
     if max_steps < 0:
         raise ValueError("max_steps must be >= 0")
-    rules = _rules(m, goal, forbidden, relaxed, start)
+    rules = _keeping(m, _rules(m, goal, forbidden, relaxed, start), kept)
     phi_p = _pred(m, phi) if phi is not None else None
     counting = maintenance_cost > 1 and maintenance
     kinds = {t.name: t.kind for t in m.transitions}
