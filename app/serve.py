@@ -24,7 +24,7 @@ from app.people.throttle import SignInThrottle
 from app.station import supervisor_cache
 from app.station.experiments import experiments
 from app.station.live import LiveStation
-from app.station.running import DeviceSetup, simulated_devices
+from app.station.running import DeviceSetup, PlanningSetup, simulated_devices
 from app.station.view import ActiveModel, build_model
 from app.store import audit, versions
 from app.store.audit import AuditEntry, AuditKind
@@ -40,6 +40,7 @@ from hw.emulation.world import EmulatedWorld
 from hw.station_devices import StationDevices
 from planner.model.expressions import Value
 from planner.model.station import Station
+from planner.runner import RunnerConfig
 
 log = logging.getLogger(__name__)
 
@@ -61,20 +62,23 @@ def build(
     speed: float = 1.0,
     secure_cookies: bool = False,
     seed_users: bool = True,
-    planning_delay: float = 0.0,
+    planning: PlanningSetup | None = None,
     devices: DeviceSetup | None = None,
     keys: Path | None = None,
     trusted_proxies: tuple[str, ...] = (),
     checkpoint_period: float = 60.0,
+    sequential: bool = False,
     progress: Callable[[str], None] | None = None,
 ) -> Built:
     """Open (and migrate) the store, load the active model, restore the station, make the app.
 
+    `planning`: in a worker process (by default), its budget, a delay for tests.
     `devices`: the station's devices (`on_devices`); by default the simulated world (the
     simulation panel and its experiments are there on all but real devices).
     `keys`: the key file (app.store.keys; by default beside a SQLite file).
     `trusted_proxies`: addresses (or networks) of reverse proxies whose X-Forwarded-For is
     believed; none by default.
+    `sequential`: one operation at a time instead of the operation plan's partial order.
     `progress`: told each step as it starts, in words (`sp serve` prints them).
     """
     say = progress or (lambda _line: None)
@@ -86,15 +90,10 @@ def build(
     seeded = _seed_users(store, name) if seed_users else []
     model = _active_model(store, name, text, model_path.name, cache, say)
     say("restoring the station's last state")
-    live = LiveStation(
-        store,
-        name,
-        model,
-        period=period,
-        clock=_scaled_clock(speed),
-        planning_delay=planning_delay,
-        devices=devices or simulated_devices,
-    )
+    config = RunnerConfig(auto_intentions=frozenset(), sequential=sequential)
+    clock, devices = _scaled_clock(speed), devices or simulated_devices
+    live = LiveStation(store, name, model, config=config, period=period, clock=clock,
+                       planning=planning, devices=devices)  # fmt: skip
     _watch_the_task_page(live)
     if live.simulated:
         say("loading the experiments E1-E9")

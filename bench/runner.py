@@ -47,6 +47,7 @@ from pathlib import Path
 from typing import Any
 from unittest import mock
 
+from app.station import recovery_types
 from bench import cells, process
 from bench.planning import machine
 from planner.runner import Event
@@ -69,7 +70,6 @@ PAPER_MS: dict[str, list[tuple[str, float]]] = {
     "e9": [("TP", 895)],
 }
 RECOVERY_TARGET_MS = 20.0  # the issue: every recovery planning action
-ROUTINE = ("goals", "intentions")  # plan reasons that are not recovery (README, `sp run`)
 DEMO_TICK_TARGET_MS = 1.0  # the issue: a tick without replanning on the demo station
 LARGE_TICK_TARGET_MS = 10.0  # ... and at 10,000 transitions
 
@@ -78,15 +78,12 @@ LARGE_TICK_TARGET_MS = 10.0  # ... and at 10,000 transitions
 
 
 def recovery(events: Sequence[Event]) -> list[Event]:
-    """Planning actions after the first fault that were not routine (as
-    tests/planner/runner/test_runner.py)."""
-    first = next((k for k, e in enumerate(events) if e.kind == "fault"), len(events))
-    return [e for e in events[first:] if e.kind == "plan" and e.detail["reason"] not in ROUTINE]
+    """Planning actions that recovered from the first fault (app.station.recovery_types)."""
+    return [e for e in recovery_types.recovery(events) if isinstance(e, Event)]
 
 
 def matches(paper: str, event: Event) -> bool:
-    level, *flags = paper.replace(" w/", " ").split()
-    return bool(event.detail["level"] == level and set(flags) <= set(event.detail["flags"]))
+    return recovery_types.matches(paper, recovery_types.label(event))
 
 
 def match_paper(paper: Sequence[str], ours: Sequence[Event]) -> list[int | None]:
@@ -94,7 +91,7 @@ def match_paper(paper: Sequence[str], ours: Sequence[Event]) -> list[int | None]
     out: list[int | None] = []
     at = 0
     for action in paper:
-        found = next((k for k in range(at, len(ours)) if matches(action, ours[k])), None)
+        found = next((k for k, e in enumerate(ours) if k >= at and matches(action, e)), None)
         out.append(found)
         if found is not None:
             at = found + 1
@@ -315,7 +312,8 @@ def read_play(lines: Sequence[str], scenario: str, until: float, cut: float | No
                     str(record.get("status", "")),
                     float(record.get("millis") or 0.0),
                     announced=True,
-                    recovery=fault and reason not in ROUTINE,
+                    recovery=fault
+                    and recovery_types.recovering(reason, str(record.get("status", ""))),
                 )
             )
         elif kind in ("done", "stopped"):

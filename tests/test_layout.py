@@ -25,7 +25,7 @@ PLANNER = {
 }
 # long by nature: one declaration each (the argument parser, a migration's tables)
 DECLARATIVE = {
-    ("app/cli/main.py", "_parser"),
+    ("app/cli/arguments.py", "parser"),
     ("migrations/versions/0001_station_store.py", "upgrade"),
 }
 

@@ -13,6 +13,7 @@ import socket
 import threading
 import time
 from collections.abc import Callable, Iterable
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -134,6 +135,7 @@ def _build(
         devices=devices,
         keys=Path(args.keys) if args.keys else None,
         trusted_proxies=tuple(args.trusted_proxy),
+        sequential=args.sequential,
         progress=say,
     )
 
@@ -189,6 +191,8 @@ def run(args: argparse.Namespace, observer: QueryObserver | None = None) -> int:
             raise UsageError(str(exc)) from None
     else:
         scenario = Scenario(file="(none)")
+    if args.sequential:
+        scenario = replace(scenario, config=replace(scenario.config, sequential=True))
     planners = Planners(planner_for(args, station.model, text), OperationPlanner(station))
     planners.transition.prepare()  # before the clock starts, as a station does while it builds
     with contextlib.ExitStack() as stack:

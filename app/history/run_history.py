@@ -18,7 +18,7 @@ from sqlalchemy import select
 
 from app.history.runs import Happening, Run, on_one_clock, runs
 from app.history.timeline import KINDS
-from app.store.audit import AuditKind, record_kind
+from app.store.audit import AuditKind, RecordKind, record_kind
 from app.store.db import Store
 from app.store.tables import AuditRecord
 
@@ -39,11 +39,14 @@ class History:
         return next((r for r in self.runs if r.first == first), None)
 
 
-def happenings(store: Store, station: str, limit: int = LIMIT) -> list[Happening]:
-    """The station's newest `limit` records a timeline reads, oldest first, on one clock."""
+def happenings(
+    store: Store, station: str, limit: int = LIMIT, kinds: frozenset[RecordKind] = KINDS
+) -> list[Happening]:
+    """The station's newest `limit` records of `kinds` (those a timeline reads), oldest
+    first, on one clock."""
     query = (
         select(AuditRecord)
-        .where(AuditRecord.station == station, AuditRecord.kind.in_(sorted(KINDS)))
+        .where(AuditRecord.station == station, AuditRecord.kind.in_(sorted(kinds)))
         .order_by(AuditRecord.id.desc())
         .limit(limit)
     )

@@ -65,6 +65,7 @@ def activate(running: Running, round_: Round, prepared: Prepared, user: str) -> 
     running.model, running.worker = prepared.model, prepared.worker
     if old_worker is not None:  # its process may take a while to end: not in the loop
         threading.Thread(target=old_worker.close, name="old-planning-worker").start()
+    prepared.runner.learned = running.durations.medians()  # read here, in the loop
     state = carry_over(running.state, prepared.runner, round_.now)
     devices = prepared.devices
     if devices is not old_devices:  # a simulated world of the new model takes up the old one

@@ -15,7 +15,7 @@ so that what the experiments E1-E9 test is the path the web station runs.
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from hw.devices import Devices, ModelSimulation
 from hw.faults import Fault
@@ -35,21 +35,25 @@ from planner.runner import (
 
 @dataclass(frozen=True)
 class ScheduledFault:
-    """A fault armed to happen `at` a time or `when` a condition first holds."""
+    """A fault armed to happen `at` a time or `when` a condition first holds (and `after`
+    seconds more: a network that comes back a few seconds after it went)."""
 
     fault: Fault
     at: float | None = None
     when: Expr | None = None
     text: str = ""
+    after: float = 0.0
 
 
 @dataclass(frozen=True)
 class ScheduledAction:
-    """A person's action planned `at` a time or `when` a condition first holds."""
+    """A person's action planned `at` a time or `when` a condition first holds (and
+    `after` seconds more: a person answers what they see a moment later)."""
 
     action: Action
     at: float | None = None
     when: Expr | None = None
+    after: float = 0.0
 
 
 def due(
@@ -80,12 +84,15 @@ class StationCycle:
     devices: Devices
     state: RunnerState
     faults: list[ScheduledFault] = field(default_factory=list)
+    # a scenario's people: what they do at a time or on a condition (`Scenario.actions`)
+    people: list[ScheduledAction] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         self.publish()
 
     def step(self, now: float, actions: Iterable[Action] = ()) -> CycleResult:
         events = self.fire_faults(now)
+        actions = (*self.people_due(now), *actions)
         self.devices.advance(now)
         report = self.devices.read()
         inputs = Inputs(report.measured, report.observed, report.heartbeats, tuple(actions))
@@ -101,10 +108,24 @@ class StationCycle:
         fired = []
         for scheduled in [f for f in self.faults if due(f, now, self.runner, self.state.values)]:
             self.faults.remove(scheduled)
+            if scheduled.after > 0:  # its condition held: it happens `after` seconds later
+                self.faults.append(replace(scheduled, at=now + scheduled.after, when=None, after=0))
+                continue
             self.inject(scheduled.fault)
             detail = {"fault": scheduled.text}
             fired.append(Event(now, EventKind.FAULT, scheduled.fault.kind.value, detail))
         return fired
+
+    def people_due(self, now: float) -> list[Action]:
+        """The scheduled actions whose time has come, in their order."""
+        taken = []
+        for scheduled in [a for a in self.people if due(a, now, self.runner, self.state.values)]:
+            self.people.remove(scheduled)
+            if scheduled.after > 0:  # its condition held: done `after` seconds later
+                self.people.append(replace(scheduled, at=now + scheduled.after, when=None, after=0))
+                continue
+            taken.append(scheduled.action)
+        return taken
 
     def inject(self, fault: Fault) -> None:
         """`fault` in the devices now (ValueError on real devices)."""

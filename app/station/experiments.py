@@ -54,11 +54,17 @@ def experiments(station: Station) -> dict[str, tuple[str, Scenario]]:
 def play(running: Running, round_: Round, scenario: Scenario, title: str, user: str) -> None:
     """Put the station back to `scenario`'s start in this round (module docstring)."""
     now = round_.now
-    runner = running.runner_with(replace(scenario.config, auto_intentions=frozenset()))
+    sequential = scenario.config.sequential or running.config.sequential  # `sp serve --sequential`
+    config = replace(scenario.config, auto_intentions=frozenset(), sequential=sequential)
+    runner = running.runner_with(config)
     state = runner.initial(now, scenario.start)
     running.devices.restart(state.values, delays_of(scenario))
     faults = [replace(f, at=None if f.at is None else now + f.at) for f in scenario.faults]
-    running.cycle = StationCycle(runner, running.devices, state, faults)
+    people = [  # the scenario's people's actions, in the name of who played it
+        replace(a, at=None if a.at is None else now + a.at, action=replace(a.action, user=user))
+        for a in scenario.actions
+    ]
+    running.cycle = StationCycle(runner, running.devices, state, faults, people)
     running.experiment = title
     why = f"{user} played the experiment {title}"
     round_.reset = why

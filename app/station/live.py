@@ -22,6 +22,8 @@ from concurrent.futures import Future
 from dataclasses import dataclass
 from typing import Any
 
+from app.history.durations import Durations
+from app.history.run_history import happenings
 from app.station import activation, records
 from app.station.alarms import AlarmBook, AlarmChange
 from app.station.cycle import StationCycle
@@ -50,9 +52,10 @@ from app.store.audit import AuditEntry, AuditKind
 from app.store.db import Store
 from hw.devices import DeviceKind, Devices
 from hw.faults import Fault
-from planner.runner import Action, Runner, RunnerConfig, RunnerState, snapshot
+from planner.runner import Action, EventKind, Runner, RunnerConfig, RunnerState, snapshot
 
 log = logging.getLogger(__name__)
+LEARNED_FROM = 5000  # the newest operation records the durations are learned from at start
 
 __all__ = ["Acted", "LiveStation", "StationError"]
 
@@ -76,8 +79,7 @@ class LiveStation:
         period: float = 0.1,
         clock: Callable[[], float] = time.monotonic,
         wall: Callable[[], float] = time.time,
-        planning_worker: bool = True,
-        planning_delay: float = 0.0,
+        planning: PlanningSetup | None = None,
         devices: DeviceSetup = simulated_devices,
     ) -> None:
         self.store, self.name, self.wall = store, name, wall
@@ -88,7 +90,7 @@ class LiveStation:
             name,
             model,
             config or RunnerConfig(auto_intentions=frozenset()),
-            PlanningSetup(planning_worker, planning_delay),
+            planning or PlanningSetup(),
             devices,
             self.now(),
         )
@@ -264,7 +266,10 @@ def _restored(
     """The station as it was at its last committed round, or new at its initial state."""
     saved = records.restore(store, name)
     worker = planning.worker(model)
-    runner = runner_for(model, config, worker)
+    durations = Durations()
+    durations.learn(happenings(store, name, LEARNED_FROM, frozenset({EventKind.OPERATION})))
+    durations.forget_starts()
+    runner = runner_for(model, config, worker, durations.medians())
     state: RunnerState
     if saved.snapshot is None:
         state = runner.initial(now)
@@ -275,6 +280,5 @@ def _restored(
         if saved.world is not None:
             devices.restore(saved.world, now)
     cycle = StationCycle(runner, devices, state)
-    return Running(
-        model, config, planning, worker, cycle, saved.alarms, RunTracker(model.words, state)
-    )
+    runs = RunTracker(model.words, state)
+    return Running(model, config, planning, worker, cycle, saved.alarms, runs, durations)

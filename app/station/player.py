@@ -9,10 +9,10 @@ approvals and maintenance steps as the scenario says.  Each round is one station
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 
-from app.station.cycle import StationCycle, due
+from app.station.cycle import StationCycle
 from app.station.runs import RunTracker
 from app.station.scenario import Scenario
 from hw.devices import Devices
@@ -29,6 +29,7 @@ from planner.runner import (
     IntentionState,
     MaintenanceDone,
     QueryObserver,
+    Reject,
     Runner,
     RunnerState,
 )
@@ -56,6 +57,7 @@ def play(
     observer: QueryObserver | None = None,
     devices: Devices | None = None,
     clock: Callable[[], float] | None = None,
+    learned: Mapping[str, float] | None = None,
 ) -> Iterator[Event]:
     """Run the scenario; yields events. `speed` 0 runs as fast as possible, 1 in real time.
 
@@ -63,16 +65,19 @@ def play(
     (emulated devices, `app.station.emulated`) it runs in real time on `clock`: a round
     every `step` seconds, the scenario's times counted from the first round.  `watch` sees
     the runner's state after every tick (for tests and monitors); `observer` sees every
-    planning query (for benchmarks).  The play is done when the run of the scenario's
-    intentions ended with every one of them finished (`app.station.runs`), and stops at the
-    scenario's time limit otherwise, saying what the station waits for.
+    planning query (for benchmarks).  `learned`: how long each operation takes, as a
+    station learns it from its runs (`app.history.durations`).  The play is done when the
+    run of the scenario's intentions ended with every one of them finished
+    (`app.station.runs`), and stops at the scenario's time limit otherwise, saying what the
+    station waits for.
     """
     rounds = _Rounds(step, speed, sleep, clock)
     cycle = _cycle(station, scenario, planners, rounds, stopwatch, observer, devices)
+    cycle.runner.learned = dict(learned or {})
     runs = RunTracker(Wording(station))
     people = _People(scenario)
     while (now := rounds.now()) <= scenario.until:
-        actions = people.due(now, cycle)
+        actions = people.due(now)
         result = cycle.step(now, actions)
         if watch is not None:
             watch(cycle.state)
@@ -118,29 +123,33 @@ def _cycle(
         budget = scenario.planning_budget
         runner.planning = Delayed(runner.planning, scenario.planning_delay, budget, rounds.now)
     start = runner.initial(0.0, scenario.start)
-    return StationCycle(runner, devices, start, list(scenario.faults))
+    return StationCycle(runner, devices, start, list(scenario.faults), list(scenario.actions))
 
 
 class _People:
-    """The scenario's people: the actions planned at a time or on a condition, and the
-    simulated operator's answers to approvals and maintenance steps, each when it is due."""
+    """The simulated operator's answers to approvals and maintenance steps, each when it is
+    due (the scenario's actions at a time or on a condition are the cycle's, `people`)."""
 
     def __init__(self, scenario: Scenario) -> None:
         self.scenario = scenario
-        self.scheduled = list(scenario.actions)
         self.answers: list[tuple[float, Action]] = []
+        self.rejects_left = scenario.rejects
 
-    def due(self, now: float, cycle: StationCycle) -> tuple[Action, ...]:
-        """The actions due now, in their order."""
-        values = cycle.state.values
-        for planned in [a for a in self.scheduled if due(a, now, cycle.runner, values)]:
-            self.scheduled.remove(planned)
-            self.answers.append((now, planned.action))
+    def due(self, now: float) -> tuple[Action, ...]:
+        """The answers due now, in their order."""
         actions = tuple(a for t, a in self.answers if t <= now)
         self.answers = [(t, a) for t, a in self.answers if t > now]
         return actions
 
     def answer(self, event: Event, now: float) -> None:
+        asked = event.kind is EventKind.APPROVAL or (
+            event.kind is EventKind.INSTRUCTION and event.detail.get("recovery") is True
+        )
+        if asked and self.rejects_left > 0:  # "I cannot do this", after the usual delay
+            self.rejects_left -= 1
+            step = int(event.detail["step"])
+            self.answers.append((now + self.scenario.operator_delay, Reject(step=step)))
+            return
         self.answers.extend(_operator_answers(event, self.scenario, now))
 
 
@@ -190,5 +199,7 @@ def _operator_answers(event: Event, scenario: Scenario, now: float) -> list[tupl
 
 
 def _all_finished(state: RunnerState, scenario: Scenario) -> bool:
-    names = scenario.intentions if scenario.intentions is not None else tuple(state.intentions)
+    """Every intention of the scenario finished: those that start by themselves and those
+    its people start."""
+    names = scenario.started if scenario.intentions is not None else tuple(state.intentions)
     return bool(names) and all(state.intentions[n] == IntentionState.FINISHED for n in names)

@@ -6,6 +6,8 @@ the round to the steps of `AFTER_TICK`, in order, the way py_trees hands a tick 
 post-tick handlers:
 
     follow_runs      the run tracker says where runs begin and end (`app.station.runs`)
+    learn_durations  an operation that reached its goal teaches how long it takes
+                     (`app.history.durations`): the next operation plans use it
     record_events    every event of the round becomes an audit record
     keep_alarms      the alarm book follows the runner's state; a run that ended closes
                      the alarms that came and went in it
@@ -91,6 +93,13 @@ def follow_runs(running: Running, round_: Round) -> None:
     that ends (`RunTracker.around`)."""
     tick = round_.result.events
     round_.events += running.runs.around(round_.now, running.state, tick, round_.actions)
+
+
+def learn_durations(running: Running, round_: Round) -> None:
+    if round_.reset:  # an experiment puts the station back: nothing under way is timed
+        running.durations.forget_starts()
+    if running.durations.learn(round_.events):
+        running.runner.learned = running.durations.medians()
 
 
 def record_events(running: Running, round_: Round) -> None:
@@ -206,4 +215,13 @@ def _device_links(running: Running) -> tuple[DeviceLink, ...]:
 
 def after_tick(commit: Commit, show: Show) -> tuple[RoundStep, ...]:
     """The steps after a tick, in their order (the module docstring)."""
-    return (follow_runs, record_events, keep_alarms, commit, show, answer, show.notify)
+    return (
+        follow_runs,
+        learn_durations,
+        record_events,
+        keep_alarms,
+        commit,
+        show,
+        answer,
+        show.notify,
+    )

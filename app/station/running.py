@@ -13,6 +13,7 @@ import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
+from app.history.durations import Durations
 from app.station.alarms import AlarmBook
 from app.station.cycle import StationCycle
 from app.station.planning_worker import PlanningWorker
@@ -48,17 +49,24 @@ class PlanningSetup:
 
     in_worker: bool = True
     delay: float = 0.0
+    budget: float = 10.0  # seconds a query may take before it is answered over budget
 
     def worker(self, model: ActiveModel) -> PlanningWorker | None:
         if not self.in_worker:
             return None
         file = f"model version {model.number}"
-        return PlanningWorker(model.text, file, model.cache, delay=self.delay)
+        return PlanningWorker(model.text, file, model.cache, budget=self.budget, delay=self.delay)
 
 
-def runner_for(model: ActiveModel, config: RunnerConfig, worker: PlanningWorker | None) -> Runner:
-    """A runner for `model` whose planning queries go to `worker` (None: in the tick)."""
-    return Runner(
+def runner_for(
+    model: ActiveModel,
+    config: RunnerConfig,
+    worker: PlanningWorker | None,
+    learned: Mapping[str, float] | None = None,
+) -> Runner:
+    """A runner for `model` whose planning queries go to `worker` (None: in the tick), and
+    that plans with the operations' `learned` durations."""
+    runner = Runner(
         model.station,
         model.transition_planner,
         model.operation_planner,
@@ -66,6 +74,8 @@ def runner_for(model: ActiveModel, config: RunnerConfig, worker: PlanningWorker 
         time.perf_counter,
         planning=worker,
     )
+    runner.learned = dict(learned or {})
+    return runner
 
 
 @dataclass
@@ -79,6 +89,8 @@ class Running:
     cycle: StationCycle
     book: AlarmBook
     runs: RunTracker
+    # how long each operation takes here, learned run by run (`app.history.durations`)
+    durations: Durations = field(default_factory=Durations)
     experiment: str = ""  # the title of the experiment played last ("" if none)
     # people's actions for the next round's tick: an experiment's intentions, started once
     # the devices had a round to report from their new start
@@ -98,4 +110,4 @@ class Running:
 
     def runner_with(self, config: RunnerConfig) -> Runner:
         """A runner of the active model with `config`, planning as the station does."""
-        return runner_for(self.model, config, self.worker)
+        return runner_for(self.model, config, self.worker, self.durations.medians())

@@ -56,8 +56,9 @@ _CONFIG_KEYS = (
     "retries",
     "recheck_period",
     "max_steps",
+    "sequential",
 )
-_FAULT_KEYS = ("at", "when", "kind", "resource", "effect", "instead", "count", "values")
+_FAULT_KEYS = ("at", "when", "after", "kind", "resource", "effect", "instead", "count", "values")
 # what people do at given times: (action, the keys it takes besides at/when/do/user)
 _ACTIONS: dict[str, tuple[type[Action], tuple[str, ...]]] = {
     "start_intention": (StartIntention, ("name",)),
@@ -91,12 +92,20 @@ class Scenario:
     operator_delay: float = 2.0
     approve: bool = True
     maintenance: bool = True
+    rejects: int = 0  # the operator rejects the first this many recovery steps asked of it
     until: float = 900.0
     expect: Mapping[str, Any] = field(default_factory=dict)
     # every planning query takes this many simulated seconds (0: answered at once), and one
     # past the budget is answered over budget, as the live station's worker does
     planning_delay: float = 0.0
     planning_budget: float = 10.0
+
+    @property
+    def started(self) -> tuple[str, ...]:
+        """The intentions the scenario runs: those that start by themselves (all, when it
+        does not say) and those its people start."""
+        by_people = [a.action.name for a in self.actions if isinstance(a.action, StartIntention)]
+        return tuple(dict.fromkeys([*(self.intentions or ()), *by_people]))
 
 
 Path = tuple[str | int, ...]
@@ -195,7 +204,7 @@ def _read(data: Any, file: str, station: Station) -> Scenario:
     planning = _mapping(data.get("planning"), ("planning",), "planning")
     _known(("planning",), "planning", planning, ("delay", "budget"))
     operator = _mapping(data.get("operator"), ("operator",), "operator")
-    _known(("operator",), "operator", operator, ("delay", "approve", "maintenance"))
+    _known(("operator",), "operator", operator, ("delay", "approve", "maintenance", "reject"))
     return Scenario(
         file=file,
         description=str(data.get("description", "")),
@@ -209,6 +218,7 @@ def _read(data: Any, file: str, station: Station) -> Scenario:
         operator_delay=_number(operator.get("delay", 2.0), ("operator", "delay")),
         approve=bool(operator.get("approve", True)),
         maintenance=bool(operator.get("maintenance", True)),
+        rejects=int(_number(operator.get("reject", 0), ("operator", "reject"), integer=True)),
         until=_number(data.get("until", 900.0), ("until",)),
         expect=_mapping(data.get("expect"), ("expect",), "expect"),
         planning_delay=_number(planning.get("delay", 0.0), ("planning", "delay")),
@@ -256,6 +266,8 @@ def _read_config(raw: Any, station: Station, intentions: tuple[str, ...] | None)
     for key in (*numbers, "retries", "max_steps"):
         if key in config:
             _number(config[key], ("config", key), integer=key in ("retries", "max_steps"))
+    if "sequential" in config and not isinstance(config["sequential"], bool):
+        raise _Problem(("config", "sequential"), f"{config['sequential']!r} is not true or false")
     return RunnerConfig(
         auto_intentions=frozenset(intentions) if intentions is not None else None,
         **{k: v for k, v in config.items()},
@@ -309,9 +321,17 @@ def _read_fault(where: Path, entry: Any, station: Station, scope: Any) -> Schedu
     for name in fault.values:
         if name not in station.model.variable_index:
             raise _Problem((*where, "values", name), f"unknown variable '{name}'")
-    text = ", ".join(f"{key}={entry[key]}" for key in _FAULT_KEYS[2:] if key in entry)
+    text = ", ".join(f"{key}={entry[key]}" for key in _FAULT_KEYS[3:] if key in entry)
     at = _number(entry["at"], (*where, "at")) if "at" in entry else None
-    return ScheduledFault(fault, at, when, text)
+    return ScheduledFault(fault, at, when, text, _after(entry, where, when))
+
+
+def _after(entry: dict[str, Any], where: Path, when: Expr | None) -> float:
+    """`after`: seconds from the moment a `when` condition first holds."""
+    after = _number(entry.get("after", 0.0), (*where, "after"))
+    if after and when is None:
+        raise _Problem((*where, "after"), "'after' counts from a 'when' condition: give one")
+    return after
 
 
 def _when(entry: dict[str, Any], where: Path, scope: Any) -> Expr | None:
@@ -333,15 +353,16 @@ def _read_action(where: Path, entry: Any, scope: Any) -> ScheduledAction:
     if do not in _ACTIONS:
         raise _Problem((*where, "do"), f"do must be one of {', '.join(_ACTIONS)}, not {do!r}")
     kind, keys = _ACTIONS[do]
-    _known(where, "action", entry, ("at", "when", "do", "user", *keys))
+    _known(where, "action", entry, ("at", "when", "after", "do", "user", *keys))
     when = _when(entry, where, scope)
+    after = _after(entry, where, when)
     missing = [key for key in keys if key not in entry and key != "reason"]
     if missing:
         raise _Problem(where, f"{do} needs {', '.join(missing)}")
     arguments = {key: entry[key] for key in keys if key in entry}
     action = kind(user=str(entry.get("user", "engineer")), **arguments)
     at = _number(entry["at"], (*where, "at")) if "at" in entry else None
-    return ScheduledAction(action, at, when)
+    return ScheduledAction(action, at, when, after)
 
 
 def _known(where: Path, what: str, data: Mapping[str, Any], keys: tuple[str, ...]) -> None:

@@ -25,7 +25,8 @@ Besides `run_tick`, a phase's step runs inside another phase where the paper's o
     operations.plan_operations     also entered from itself, for the intentions that do
                                    not fail
     maintenance.plan_maintenance   also entered from `operations.plan_operations` (after
-                                   intentions fail) and `background.background_check`
+                                   intentions fail, once the operations still executing
+                                   have come to rest) and `background.background_check`
     retries.failed_attempt         also entered from phase 1, when an effect other than the
                                    expected one happens: an operation out of retries fails,
                                    which drops the transition plan and asks for a new

@@ -18,7 +18,7 @@ during forbidden-state recovery.
 
 from __future__ import annotations
 
-from planner.runner.maintenance import plan_maintenance
+from planner.runner.maintenance import request_maintenance
 from planner.runner.operations import predicted
 from planner.runner.queries import ask, disabled, transition_query
 from planner.runner.retries import forget_failures
@@ -44,7 +44,7 @@ def background_check(tick: Tick) -> None:
     recheck_intentions(tick)
     answers_again = tick.availability_changed - state.unavailable
     if answers_again and state.intentions_in(IntentionState.ERROR) and state.maintenance is None:
-        plan_maintenance(tick)  # a resource that answers again may be the way out
+        request_maintenance(tick)  # a resource that answers again may be the way out
     state.rechecked = what_the_check_reads(tick)
 
 

@@ -14,8 +14,11 @@ back with nothing else to wait for, is a deviation.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from planner.model.expressions import Expr
 from planner.model.flat import UNCONTROLLABLE, TransitionKind
+from planner.model.semantics import State
 from planner.planning.partial_order import blocks
 from planner.planning.query import PlanResult
 from planner.runner.automatic import automatic_enabled, settle
@@ -82,14 +85,15 @@ def take(tick: Tick, plan: TransitionPlan, k: int, *, supervised: bool) -> bool:
     after = chosen.apply(current)
     if not why and supervised and tick.runner.is_bad(after):
         why = "the supervisor holds it back: it would lead into a bad state"
-        tick.replan_transitions(ReplanReason.DEVIATION)
+        if plan is tick.state.transition_plan:  # a maintenance plan waits, or is stuck
+            tick.replan_transitions(ReplanReason.DEVIATION)
     if why:
         if plan.held.get(k) != why:
             plan.held[k] = why
             tick.emit(EventKind.BLOCKED, name, step=k, why=why)
         return False
     tick.set_values(after)
-    plan.start(k)
+    plan.start(k, enabled_in(tick, after))
     tick.emit(EventKind.TAKEN, name, type=chosen.kind.value)
     settle(tick)
     return True
@@ -131,6 +135,7 @@ def plan_reaches(tick: Tick, plan: TransitionPlan) -> bool:
         plan.blocks,
         set(plan.taken),
         {k: list(v) for k, v in plan.remaining.items()},
+        early=list(plan.early),
     )
     expected = set(plan.steps)
     planned_effects = [
@@ -158,7 +163,7 @@ def plan_reaches(tick: Tick, plan: TransitionPlan) -> bool:
                 break
         if step is not None:
             current = index.transition(plan.blocks[step].transition).apply(current)
-            simulated.start(step)
+            simulated.start(step, enabled_in(tick, current))
             continue
         waiting = [n for k in sorted(simulated.remaining) for n in simulated.remaining[k]]
         usable = [e for e in planned_effects if e.name not in unusable and e.guard(current)]
@@ -170,3 +175,8 @@ def plan_reaches(tick: Tick, plan: TransitionPlan) -> bool:
         current = effect.apply(current)
         simulated.happened(effect.name)
     return goal(current)
+
+
+def enabled_in(tick: Tick, state: State) -> Callable[[str], bool]:
+    """Whether a transition's guard holds in `state` (which early effects still count)."""
+    return lambda name: tick.index.transition(name).guard(state)

@@ -14,14 +14,17 @@ next plan.  Recovery ends when every specification holds and the state is not ba
     person's step shown (an instruction) --done--> next step
     step asked --reject--> plan made again without it
     no plan (everything rejected) --> hold: nothing moves, said once (an `error` event)
-    holding --the state or what planning may use changes--> rejections forgotten, plan again
+    holding --the state changes--> plan again (quietly, if still nothing)
+    holding --what a rejected step reads or writes, or what planning may use, changes-->
+        rejections forgotten, plan again
     every specification holds and the state is good --> recovered, production replans
 """
 
 from __future__ import annotations
 
-from planner.model.expressions import TRUE
+from planner.model.expressions import TRUE, variables_of
 from planner.model.flat import TransitionKind
+from planner.model.semantics import State
 from planner.planning.query import PlanQuery
 from planner.runner.automatic import violates_specifications
 from planner.runner.following import follow, startable, stuck, take
@@ -52,9 +55,10 @@ def recover(tick: Tick) -> None:
             state.recovery_held = None
             state.announced = ()
             return
-        if holding(tick):
+        kept = holding(tick)
+        if kept is None:
             return
-        plan_recovery(tick, violated)
+        plan_recovery(tick, violated, quiet=kept)
     plan = state.recovery
     if plan is None:
         return
@@ -92,22 +96,41 @@ def recover(tick: Tick) -> None:
         take(tick, plan, k, supervised=False)
 
 
-def holding(tick: Tick) -> bool:
+def holding(tick: Tick) -> bool | None:
     """Recovery found no plan here: plan again only once something changed (the state, or
-    what planning may use), never tick after tick.  A change also gives the rejected steps
-    another chance: they were rejected for the state as it was."""
+    what planning may use), never tick after tick (None: hold).  A rejection stands while
+    nothing it depends on changed: a step is rejected for the state it would act in, and
+    other work coming to an end (a person's card, a robot arriving) does not make it
+    acceptable; what the station has learned from a change that leaves the rejections
+    standing is only whether a new way out appeared (True: plan again, quietly if not)."""
     state = tick.state
     if state.recovery_held is None:
         return False
-    if state.recovery_held == (tick.current(), disabled(tick)):
-        return True
+    held_at, held_disabled = state.recovery_held
+    now_disabled = disabled(tick)
+    if (held_at, held_disabled) == (tick.current(), now_disabled):
+        return None
     state.recovery_held = None
-    state.rejected.clear()
-    return False
+    if held_disabled != now_disabled or touches_rejected(tick, held_at):
+        state.rejected.clear()
+        return False
+    return True
 
 
-def plan_recovery(tick: Tick, violated: list[str]) -> None:
-    """A plan back to a state where every specification holds, without rejected steps."""
+def touches_rejected(tick: Tick, before: State) -> bool:
+    """Whether a variable a rejected step reads or writes changed since `before`."""
+    model = tick.index.model
+    touched: set[str] = set()
+    for name in tick.state.rejected:
+        transition = model.transition(name)
+        touched |= variables_of(transition.guard) | {a.target for a in transition.actions}
+    now = tick.current()
+    return any(before[model.variable_index[v]] != now[model.variable_index[v]] for v in touched)
+
+
+def plan_recovery(tick: Tick, violated: list[str], *, quiet: bool = False) -> None:
+    """A plan back to a state where every specification holds, without rejected steps;
+    `quiet`: no plan was found before with these rejections, and that was said."""
     state = tick.state
     state.relaxed = frozenset(violated)
     query = PlanQuery(
@@ -123,6 +146,8 @@ def plan_recovery(tick: Tick, violated: list[str]) -> None:
     announce(tick, PlanLevel.TRANSITIONS, flags, ReplanReason.FORBIDDEN_STATE, result, millis)
     if not result.found:
         state.recovery_held = (tick.current(), disabled(tick))
+        if quiet:
+            return
         usual = "every way out was rejected" if state.rejected else "no way out exists"
         why = no_plan_because(result, usual)
         tick.emit(

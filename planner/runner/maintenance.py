@@ -12,6 +12,12 @@ be tried again, if it has retries left.
     what it waits for can no longer happen --> made again from here
     every step done --> the operation goes back to initial (within its retries)
     no intention in error any more --> the plan is dropped
+
+With operations in parallel, an intention can go to error while other operations still
+execute (the operator placing a bolt pair beside a robot that failed).  They are let finish,
+and the plan is made once they have come to rest (`maintenance_due`): a plan made before
+would be planned from a state their own steps are still changing, and both would steer the
+same robots.
 """
 
 from __future__ import annotations
@@ -31,10 +37,20 @@ from planner.runner.vocabulary import (
 )
 
 
+def request_maintenance(tick: Tick) -> None:
+    """Intentions went to error: plan maintenance now, or once the operations still
+    executing have come to rest (module docstring)."""
+    if tick.state.executing():
+        tick.state.maintenance_due = True
+        return
+    plan_maintenance(tick)
+
+
 def plan_maintenance(tick: Tick) -> None:
     """With intentions in error: a plan with maintenance transitions for the first operation
     in error that has one (those that were executing first)."""
     state = tick.state
+    state.maintenance_due = False
     errors = state.operations_in(OperationState.ERROR)
     failed = [n for n in errors if n in state.operation_goals]
     failed += [n for n in errors if n not in state.operation_goals]
@@ -67,11 +83,13 @@ def plan_maintenance(tick: Tick) -> None:
 
 def follow_maintenance_plan(tick: Tick) -> None:
     state = tick.state
+    if not state.intentions_in(IntentionState.ERROR):
+        state.maintenance, state.maintenance_due = None, False
+        return
+    if state.maintenance_due and not state.executing():
+        plan_maintenance(tick)
     plan = state.maintenance
     if plan is None:
-        return
-    if not state.intentions_in(IntentionState.ERROR):
-        state.maintenance = None
         return
     if stuck(tick, plan, "maintenance plan"):  # made again (it asks: run it in `attempt`)
         state.maintenance = None

@@ -100,7 +100,7 @@ def report_a_different_effect(tick: Tick, name: str) -> None:
         tick.emit(EventKind.UNEXPECTED, name, instead_of=instead_of, why="a different effect")
         plan = tick.state.transition_plan
         if plan is not None and plan.expected() & set(instead_of):
-            failed_attempt(tick, f"{name} happened instead of {', '.join(instead_of)}")
+            failed_attempt(tick, f"{name} happened instead of {', '.join(instead_of)}", instead_of)
 
 
 def expected_effects(tick: Tick) -> set[str]:

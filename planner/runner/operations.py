@@ -17,7 +17,7 @@ from __future__ import annotations
 from planner.model.expressions import Value, assigned
 from planner.planning.partial_order import independent_operations
 from planner.planning.query import PlanStatus
-from planner.runner.maintenance import plan_maintenance
+from planner.runner.maintenance import request_maintenance
 from planner.runner.queries import announce, ask, no_plan_because
 from planner.runner.retries import forget_failures, while_blocked
 from planner.runner.state import OperationPlan
@@ -221,12 +221,19 @@ def plan_operations(tick: Tick, active: list[str], reason: ReplanReason) -> None
     errors = sorted(state.operations_in(OperationState.ERROR))
     intentions = [tick.index.intentions[n] for n in active]
     planner = tick.runner.operation_planner
+    durations = {} if tick.config.sequential else tick.runner.durations()
     query = planner.query(
-        predicted(tick), intentions, disabled=errors, max_steps=tick.config.max_steps
+        predicted(tick),
+        intentions,
+        disabled=errors,
+        max_steps=tick.config.max_steps,
+        durations=durations,
     )
     result, millis = ask(tick, PlanLevel.OPERATIONS, query, "operations")
     flags = (RecoveryFlag.DISABLED_OPERATIONS,) if errors else ()
-    announce(tick, PlanLevel.OPERATIONS, flags, reason, result, millis)
+    span = result.statistics.get("makespan")
+    extra = {} if span is None else {"expected_cycle": round(span, 1)}
+    announce(tick, PlanLevel.OPERATIONS, flags, reason, result, millis, **extra)
     if result.found:
         after = independent_operations(tick.index.operation_variables, result.plan)
         state.operation_plan = OperationPlan(result.plan, tuple(after))
@@ -252,10 +259,16 @@ def plan_operations(tick: Tick, active: list[str], reason: ReplanReason) -> None
     if still and still != active:
         plan_operations(tick, still, ReplanReason.ERROR)
     if state.intentions_in(IntentionState.ERROR):
-        plan_maintenance(tick)
+        request_maintenance(tick)
 
 
 def start_operations(tick: Tick) -> None:
+    """Start the plan's operations whose turn has come in its partial order.
+
+    An operation never starts beside an executing one it shares a variable with, even one
+    from an earlier plan (a plan made again while an operation runs does not list it):
+    operations run at once only when independent (DESIGN.md section 3.4).
+    """
     state = tick.state
     plan = state.operation_plan
     if plan is None or state.restart_mode:
@@ -264,9 +277,11 @@ def start_operations(tick: Tick) -> None:
     for k, name in enumerate(plan.steps):
         if k in plan.started or not plan.after[k] <= plan.finished:
             continue
-        if not tick.config.parallel_operations and state.operations_in(OperationState.EXECUTING):
+        if tick.config.sequential and state.operations_in(OperationState.EXECUTING):
             return
         if state.operations[name] != OperationState.INITIAL:
+            continue
+        if shares_with_executing(tick, name):
             continue
         if not index.operation_precondition[name](tick.current()):
             continue
@@ -274,3 +289,11 @@ def start_operations(tick: Tick) -> None:
         plan.started.add(k)
         tick.set_operation(name, OperationState.EXECUTING, "next in the operation plan")
         tick.replan_transitions(ReplanReason.GOALS)
+
+
+def shares_with_executing(tick: Tick, name: str) -> bool:
+    """Whether `name` shares a variable with an executing operation."""
+    index = tick.index
+    mine = index.operation_variables[name]
+    executing = tick.state.operations_in(OperationState.EXECUTING)
+    return any(mine & index.operation_variables[other] for other in executing)

@@ -75,6 +75,8 @@ def approve_or_reject(tick: Tick, action: Approve | Reject) -> Reply:
     step = action.step
     if plan is None or not 0 <= step < len(plan.blocks):
         return tick.refuse(action, f"step {step}", "no such recovery step")
+    if step not in plan.asked:  # a person answers what was shown, not what may come
+        return tick.refuse(action, f"step {step}", "that step has not been asked for yet")
     transition = plan.blocks[step].transition
     if isinstance(action, Reject):
         tick.emit(

@@ -119,9 +119,15 @@ def unchanged(tick: Tick, names: set[str]) -> tuple[Expr, ...]:
 
 
 def transition_query(
-    tick: Tick, goal: Expr, executing: Iterable[str], *, maintenance: bool = False
+    tick: Tick,
+    goal: Expr,
+    executing: Iterable[str],
+    *,
+    maintenance: bool = False,
+    kept: tuple[Expr, ...] = (),
 ) -> PlanQuery:
-    """A transition planning query from the current state.
+    """A transition planning query from the current state; `kept`: what the plan keeps
+    true whatever the world does (the next operations' causal links, `links`).
 
     Maintenance planning drops the monotonic abstraction: a person putting things right
     (hanging back the tool a dead robot holds) changes what the operations estimate.
@@ -132,6 +138,7 @@ def transition_query(
         tick.config.max_steps,
         maintenance=maintenance,
         forbidden=() if maintenance else monotonic_abstraction(tick, executing),
+        kept=kept,
         disabled=disabled(tick),
         maintenance_cost=MAINTENANCE_COST if maintenance else 1,
     )

@@ -15,6 +15,9 @@ starting over, timing out again and using up their retries.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+
+from planner.model.expressions import variables_of
 from planner.runner.tick import Tick
 from planner.runner.vocabulary import OperationState, ReplanReason
 
@@ -88,12 +91,12 @@ def fail_operation(tick: Tick, name: str, why: str) -> None:
         state.operation_plan.unstart(name)
 
 
-def failed_attempt(tick: Tick, what: str) -> None:
-    """The executing operations' attempt went wrong (`what` happened): each counts a
-    failure, and those that used up their retries go to error."""
+def failed_attempt(tick: Tick, what: str, instead_of: Iterable[str] = ()) -> None:
+    """The attempt of the operations that waited for `instead_of` went wrong (`what`
+    happened): each counts a failure, and those that used up their retries go to error."""
     state = tick.state
     failed = []
-    for name in state.executing():
+    for name in waiting_for_effects(tick, set(instead_of)):
         count = count_failure(tick, name)
         if count >= tick.config.retries:
             fail_operation(tick, name, f"{what} ({count} failed attempts)")
@@ -101,3 +104,24 @@ def failed_attempt(tick: Tick, what: str) -> None:
     if failed:
         state.transition_plan = None
         state.replan_operations = ReplanReason.ERROR
+
+
+def waiting_for_effects(tick: Tick, effects: set[str]) -> list[str]:
+    """The executing operations whose goals depend on `effects` in the transition plan: a
+    goal reads what they write, or what a later step of the plan that reads it writes.
+    Operations running beside them (the operator placing bolts while a camera misses) do
+    not count a failure.  All executing ones when the plan does not tell."""
+    state = tick.state
+    executing = state.executing()
+    plan = state.transition_plan
+    at = next((k for k, step in enumerate(plan.steps) if step in effects), None) if plan else None
+    if plan is None or at is None:
+        return executing
+    model = tick.index.model
+    written: set[str] = set()
+    for step in plan.steps[at:]:
+        transition = model.transition(step)
+        if step in effects or variables_of(transition.guard) & written:
+            written |= {a.target for a in transition.actions}
+    concerned = [n for n in executing if variables_of(state.operation_goals[n]) & written]
+    return concerned or executing

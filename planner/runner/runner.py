@@ -105,6 +105,15 @@ class Runner:
             transition_planner, operation_planner, stopwatch
         )
         self._bad: dict[State, bool] = {}
+        # what the station has learned: seconds per operation, the median of its last runs
+        # (`app.history.durations`); the app keeps it up to date, planning reads it
+        self.learned: Mapping[str, float] = {}
+
+    def durations(self) -> dict[str, float]:
+        """Seconds per operation for the operation planner: what was learned, else the
+        model's estimate; none at all when nothing is known (the first plan found)."""
+        estimates = {o.name: o.duration for o in self.station.operations if o.duration}
+        return {**estimates, **self.learned}
 
     def initial(self, now: float = 0.0, values: Mapping[str, Value] | None = None) -> RunnerState:
         start = {v.name: v.initial for v in self.model.variables}

@@ -19,7 +19,8 @@ that was unavailable stays so until it answers; a timed-out effect stays timed o
 
 The stored keys are those of format 1, which outside tools may read: where a field of
 `RunnerState` was renamed since, `STORED_AS` gives its key.  Keys added since format 1 began
-(`_ADDED`, and a plan's `held`) are optional, so that older snapshots still load.
+(`_ADDED`, and a plan's `held`, `early` and `kept`) are optional, so that older snapshots
+still load.
 """
 
 from __future__ import annotations
@@ -58,6 +59,7 @@ _ADDED = {
     "resumable": [],
     "reminded": {},
     "announced": [],
+    "maintenance_due": False,
 }
 
 T = TypeVar("T")
@@ -114,6 +116,7 @@ def _fields(state: RunnerState) -> dict[str, Any]:
         "resumable": sorted(state.resumable),
         "reminded": dict(sorted(state.reminded.items())),
         "announced": list(state.announced),
+        "maintenance_due": state.maintenance_due,
     }
 
 
@@ -137,6 +140,8 @@ def _dump_plan(plan: TransitionPlan | None) -> dict[str, Any] | None:
         "approved": sorted(plan.approved),
         "asked": sorted(plan.asked),
         "held": {str(k): why for k, why in sorted(plan.held.items())},
+        "early": list(plan.early),
+        "kept": [format_expr(expr) for expr in plan.kept],
     }
 
 
@@ -169,7 +174,7 @@ def load(
     data = {**_ADDED, **data}
     for key in ("transition_plan", "recovery", "maintenance"):
         if isinstance(data.get(key), dict):
-            data[key] = {"held": {}, **data[key]}
+            data[key] = {"held": {}, "early": [], "kept": [], **data[key]}
     loader = _Loader(runner, strict)
     keys = dump(runner.initial())  # every key dump writes
     return loader.state(loader.record(data, keys, "the snapshot"), now)
@@ -263,12 +268,14 @@ class _Loader:
         return strings
 
     def added_fields(self, data: Mapping[str, Any]) -> dict[str, Any]:
-        """Fields added to format 1 later: late effects, reminders, announced violations."""
+        """Fields added to format 1 later: late effects, reminders, announced violations,
+        maintenance waiting for the operations to come to rest."""
         return {
             "blamed_on_timeouts": self.blamed(data["blamed_on_timeouts"]),
             "resumable": self.names(data["resumable"], "operation", "resumable"),
             "reminded": self.counts(data["reminded"], "transition", "reminded"),
             "announced": tuple(self.steps(data["announced"], "specification", "announced")),
+            "maintenance_due": self.check(data["maintenance_due"], bool, "maintenance_due"),
         }
 
     def counts(self, raw: Any, what: str, where: str) -> dict[str, int]:
@@ -397,6 +404,11 @@ class _Loader:
             self.indexes(raw["approved"], len(blocks), f"{where}.approved"),
             self.indexes(raw["asked"], len(blocks), f"{where}.asked"),
             held,
+            list(self.steps(raw["early"], "transition", f"{where}.early")),
+            tuple(
+                self.expr(text, f"{where}.kept[{k}]")
+                for k, text in enumerate(self.check(raw["kept"], list, f"{where}.kept"))
+            ),
         )
 
     def operation_plan(self, raw: Any) -> OperationPlan | None:

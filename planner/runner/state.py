@@ -7,6 +7,7 @@ have been followed, so that a restarted station carries on where it stopped.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import TypeVar
 
@@ -36,14 +37,27 @@ class TransitionPlan:
     asked: set[int] = field(default_factory=set)  # recovery, maintenance: blocks shown to people
     # blocks held back when their turn came, with the reason last reported (reported once)
     held: dict[int, str] = field(default_factory=dict)
+    # effects and automatics that happened before the block expecting them was taken (an
+    # effect the plan put after another robot's step may come first): not waited for again
+    early: list[str] = field(default_factory=list)
+    # what the plan was made to keep for the next operations' causal links
+    # (`planner.runner.links`); a plan made for other links is made again
+    kept: tuple[Expr, ...] = ()
 
     @property
     def done(self) -> set[int]:
         return {k for k in self.taken if not self.remaining.get(k)}
 
-    def start(self, k: int) -> None:
+    def start(self, k: int, enabled: Callable[[str], bool] | None = None) -> None:
+        """Block k was taken.  Of its effects and automatics, one that came early and cannot
+        happen now (`enabled` says, in the state after the step) is not waited for."""
         self.taken.add(k)
-        self.remaining[k] = list(self.blocks[k].steps[1:])
+        waiting = list(self.blocks[k].steps[1:])
+        if enabled is not None:
+            for name in [n for n in self.early if n in waiting and not enabled(n)]:
+                waiting.remove(name)
+                self.early.remove(name)
+        self.remaining[k] = waiting
         self.held.pop(k, None)
 
     def copy(self) -> TransitionPlan:
@@ -54,14 +68,20 @@ class TransitionPlan:
             approved=set(self.approved),
             asked=set(self.asked),
             held=dict(self.held),
+            early=list(self.early),
         )
 
     def happened(self, name: str) -> None:
-        """An effect or automatic step happened: it completes the earliest block expecting it."""
+        """An effect or automatic step happened: it completes the earliest block expecting it,
+        or, when no taken block does, it is remembered for the first block not yet taken that
+        will (its guard held before its turn came)."""
         for k in sorted(self.remaining):
             if name in self.remaining[k]:
                 self.remaining[k].remove(name)
                 return
+        ahead = [n for k, b in enumerate(self.blocks) if k not in self.taken for n in b.steps[1:]]
+        if ahead.count(name) > self.early.count(name):
+            self.early.append(name)
 
     def mark_taken(self, name: str) -> None:
         """Transition `name` was taken outside the runner (a person's maintenance step)."""
@@ -134,6 +154,9 @@ class RunnerState:
     # in error it was made for (seed 000 sec. 4.5)
     maintenance: TransitionPlan | None = None
     maintenance_for: str = ""
+    # intentions went to error while other operations still executed: the maintenance plan
+    # is made once they have come to rest, from where they leave the station
+    maintenance_due: bool = False
     last_heard: dict[str, float] = field(default_factory=dict)  # per resource
     unavailable: set[str] = field(default_factory=set)
     effect_enabled_since: dict[str, float] = field(default_factory=dict)

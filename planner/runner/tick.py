@@ -57,6 +57,8 @@ class TickRunner(Protocol):
 
     def is_bad(self, state: State) -> bool: ...
 
+    def durations(self) -> dict[str, float]: ...
+
 
 class Tick:
     """One tick's work on a private copy of the state."""

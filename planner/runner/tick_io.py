@@ -34,10 +34,9 @@ class RunnerConfig:
     # intentions that start by themselves when their precondition holds; None: all of them
     auto_intentions: frozenset[str] | None = None
     max_automatic_steps: int = 1000
-    # start operations the operation plan calls independent at once; off by default, because
-    # disjoint decision variables do not keep their transition plans from undoing each other's
-    # measured preconditions (a camera's result is lost when its robot makes way for the other)
-    parallel_operations: bool = False
+    # one operation at a time instead of the partial order (DESIGN.md section 3.4): the old
+    # behaviour, kept one switch away for comparison (`sp run --sequential`)
+    sequential: bool = False
 
     def timeout_of(self, effect: str, *, person: bool = False) -> float | None:
         """The time-out of `effect`: its own, else none for a person's effect (people take

@@ -15,7 +15,7 @@ import pytest
 
 from planner.runner import Reject
 from tests.browser.test_browser_operator import sign_in_first_time
-from tests.support.stations import RunningStation, start_station
+from tests.support.stations import REJECT_BUDGET, RunningStation, start_station
 from tests.web.test_no_internal_names import _cards_until, _play, operator_hands, page_paths
 
 SCREENS = {
@@ -38,7 +38,7 @@ WIDER_THAN_THE_SCREEN = """() => {
 
 @pytest.fixture(scope="module")
 def station(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RunningStation]:
-    running = start_station(tmp_path_factory.mktemp("fit"))
+    running = start_station(tmp_path_factory.mktemp("fit"), planning_budget=REJECT_BUDGET)
     running.serve()
     yield running
     running.stop()

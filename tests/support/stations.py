@@ -17,6 +17,7 @@ import uvicorn
 from fastapi.testclient import TestClient
 
 from app.serve import Built, build, default_cache
+from app.station.running import PlanningSetup
 from app.store.db import sqlite_url
 from app.web import http_server
 from tests.support.paths import REPOSITORY
@@ -130,11 +131,23 @@ class RunningStation:
         self.built.server.store.close()
 
 
+# The planning budget for stations whose tests take the reject path (E2 with the removal of
+# the oil filters rejected): its relaxed recovery is a search of some 30 steps that takes
+# 6-14 s with operations in parallel, past the station's usual 10 s (issue 27 is to make such
+# queries fast); those pages and cards are checked with time for it.
+REJECT_BUDGET = 60.0
+
+
 def start_station(
-    directory: Path, period: float = 0.05, speed: float = 4.0, planning_delay: float = 0.0
+    directory: Path,
+    period: float = 0.05,
+    speed: float = 4.0,
+    planning_delay: float = 0.0,
+    planning_budget: float = 10.0,
 ) -> RunningStation:
     """A demo station whose simulated devices run `speed` times faster than real time (and,
-    with `planning_delay`, whose every planning query takes that many seconds more)."""
+    with `planning_delay`, whose every planning query takes that many seconds more, within
+    `planning_budget`)."""
     db = directory / "station.db"
     built = build(
         MODEL,
@@ -142,7 +155,7 @@ def start_station(
         cache=default_cache(),
         period=period,
         speed=speed,
-        planning_delay=planning_delay,
+        planning=PlanningSetup(delay=planning_delay, budget=planning_budget),
     )
     station = RunningStation(built, db)
     built.server.start()

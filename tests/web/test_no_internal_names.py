@@ -34,7 +34,7 @@ from planner.reading import load_station
 from planner.runner import Reject
 from tests.browser.test_browser_operator import sign_in_first_time
 from tests.support.paths import MINI_STATION, REPOSITORY
-from tests.support.stations import RunningStation, start_station
+from tests.support.stations import REJECT_BUDGET, RunningStation, start_station
 
 ROOT = REPOSITORY
 WATCH = {"width": 320, "height": 320}
@@ -212,7 +212,7 @@ def test_the_page_text_is_what_people_read(browser: Any, demo_names: frozenset[s
 
 @pytest.fixture(scope="module")
 def station(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RunningStation]:
-    running = start_station(tmp_path_factory.mktemp("names"))
+    running = start_station(tmp_path_factory.mktemp("names"), planning_budget=REJECT_BUDGET)
     running.serve()
     yield running
     running.stop()

@@ -15,7 +15,9 @@ DELAY = 2.0  # every planning query takes this long more
 
 @pytest.fixture
 def slow(tmp_path: Path) -> Iterator[RunningStation]:
-    running = start_station(tmp_path, planning_delay=DELAY)
+    # E2's way out without the rejected step is a long recovery plan (30 steps, seconds of
+    # planning on a busy machine): this test is about answers while it plans, not the budget
+    running = start_station(tmp_path, planning_delay=DELAY, planning_budget=120.0)
     yield running
     running.stop()
 

@@ -49,7 +49,7 @@ def list_experiments(_caller: Simulator, srv: ServerDep) -> list[ExperimentOut]:
             id=key,
             title=title,
             description=scenario.description,
-            intentions=list(scenario.intentions or ()),
+            intentions=list(scenario.started),
         )
         for key, (title, scenario) in sorted(_simulated(srv).experiments.items())
     ]

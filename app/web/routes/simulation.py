@@ -51,7 +51,7 @@ def experiments_context(experiments: Experiments, words: Wording) -> dict[str, A
                 "id": key,
                 "title": words.text(title),
                 "description": words.text(scenario.description),
-                "intentions": [words.intention(i) for i in scenario.intentions or ()],
+                "intentions": [words.intention(i) for i in scenario.started],
                 "faults": [fault_text(f, words) for f in scenario.faults],
                 "recovery": [words.text(str(r)) for r in expect.get("recovery") or ()],
                 "operator": [words.text(str(o)) for o in expect.get("operator") or ()],

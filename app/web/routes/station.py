@@ -78,6 +78,7 @@ def overview_context(view: StationView) -> dict[str, Any]:
     return {
         "intentions": station_rows.intention_rows(station, s, words, view.runner.holds),
         "progress": progress,
+        "running": [sentence(words.operation(n)) for n in s.executing()],
         "resources": resources,
         "waits": waits,
         "restart": s.restart_mode,
@@ -175,7 +176,7 @@ def plans_context(view: StationView) -> dict[str, Any]:
             )
         )
     if s.operation_plan is not None:
-        sequential = not view.runner.config.parallel_operations
+        sequential = view.runner.config.sequential
         plans.append(
             (
                 "Operation plan",

@@ -19,10 +19,10 @@ from typing import Any
 
 import pytest
 
+from app.station.recovery_types import as_the_paper, label, operator_work, recovery
 from app.station.scenario import load_scenario
 from hw.ur.emulator.launch import free_block, on_block
 from planner.reading import load_station
-from tests.planner.runner.test_runner import is_subsequence, matches
 from tests.support.paths import REPOSITORY
 
 ROOT = REPOSITORY
@@ -80,15 +80,6 @@ def played(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[list[Eve
         return {name: run.result() for name, run in runs.items()}
 
 
-def recovery(events: list[Event]) -> list[Event]:
-    first = next(k for k, e in enumerate(events) if e.kind == "fault")
-    return [
-        e
-        for e in events[first:]
-        if e.kind == "plan" and e.detail["reason"] not in ("goals", "intentions")
-    ]
-
-
 @pytest.mark.parametrize("name", EXPERIMENTS)
 def test_the_experiment_recovers_on_emulated_devices_as_in_the_paper(
     played: dict[str, tuple[list[Event], str]], name: str
@@ -99,17 +90,11 @@ def test_the_experiment_recovers_on_emulated_devices_as_in_the_paper(
     scenario = load_scenario(path.read_text(), str(path), station)
     shown = [f"{e.detail.get('time')} {e.kind} {e.subject}" for e in events[-25:]]
     assert events and events[-1].kind == "done", (shown, errors[-2000:])
-    ours = recovery(events)
+    ours = [label(e) for e in recovery(events)]
     paper = list(scenario.expect["recovery"])
     assert ours, "the fault caused no replanning"
-    assert matches(paper[0], ours[0]), [e.subject for e in ours]  # type: ignore[arg-type]
-    assert is_subsequence(paper, ours), [e.subject for e in ours]  # type: ignore[arg-type]
-    work = [
-        str(e.detail["transition"])
-        for e in events
-        if e.kind == "operator" and e.subject == "maintenance done"
-    ]
-    assert work == list(scenario.expect["operator"])
+    assert as_the_paper(paper, ours), ours
+    assert operator_work(events) == list(scenario.expect["operator"])
     # the robots really moved: every arrival the runner took came from joint readings
     arrivals = [e for e in events if e.kind == "effect" and e.subject.endswith("goto.arrive")]
     assert len(arrivals) >= 4

@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 
 from app.station.cycle import ScheduledFault
 from app.station.player import Planners, play
+from app.station.recovery_types import as_the_paper, label, operator_work, recovery
 from app.station.scenario import Scenario, ScenarioError, load_scenario
 from hw.faults import Fault, FaultKind
 from planner.model.expressions import Value, format_expr
@@ -64,34 +65,6 @@ def run(
     return scenario, events, states
 
 
-def recovery(events: list[Event]) -> list[Event]:
-    """Planning actions after the first fault that were not routine (new goals, new intentions)."""
-    first = next(k for k, e in enumerate(events) if e.kind == "fault")
-    return [
-        e
-        for e in events[first:]
-        if e.kind == "plan" and e.detail["reason"] not in ("goals", "intentions")
-    ]
-
-
-def matches(paper: str, event: Event) -> bool:
-    level, *flags = paper.replace(" w/", " ").split()
-    return event.detail["level"] == level and set(flags) <= set(event.detail["flags"])
-
-
-def is_subsequence(paper: list[str], ours: list[Event]) -> bool:
-    it = iter(ours)
-    return all(any(matches(p, e) for e in it) for p in paper)
-
-
-def operator_work(events: list[Event]) -> list[str]:
-    return [
-        str(e.detail["transition"])
-        for e in events
-        if e.kind == "operator" and e.subject == "maintenance done"
-    ]
-
-
 def test_nominal_assembly_finishes_without_errors(demo: tuple[Station, Planners]) -> None:
     station, planners = demo
     _, events, states = shared("nominal")
@@ -125,12 +98,11 @@ def test_table_1_experiment_recovers_as_in_the_paper(
 ) -> None:
     scenario, events, states = shared(name)
     assert events[-1].kind == "done", [str(e) for e in events[-30:]]
-    assert all(states[-1].intentions[i] == "f" for i in scenario.intentions or ())
+    assert all(states[-1].intentions[i] == "f" for i in scenario.started)
     ours = recovery(events)
     paper = list(scenario.expect["recovery"])
     assert ours, "the fault caused no replanning"
-    assert matches(paper[0], ours[0]), [str(e) for e in ours]
-    assert is_subsequence(paper, ours), [str(e) for e in ours]
+    assert as_the_paper(paper, [label(e) for e in ours]), [str(e) for e in ours]
     assert ours[0].detail["status"] == "found" or len(paper) > 1
     assert operator_work(events) == list(scenario.expect["operator"])
 
@@ -195,6 +167,10 @@ def test_bad_scenarios_are_reported_with_file_line_column_and_entry(
         "actions: [{at: 1, do: reset_operation}]": "actions[0]: reset_operation needs name",
         "colour: red": "bad.yaml:1:9: colour: unknown scenario key 'colour'",
         "start: [1, 2": "bad.yaml:1:13: not valid YAML",
+        "config: {sequential: maybe}": "config.sequential: 'maybe' is not true or false",
+        "operator: {reject: 1.5}": "operator.reject: 1.5 is not a whole number",
+        "faults: [{at: 1, after: 2, kind: set}]": "faults[0].after: 'after' counts from a 'when'",
+        "actions: [{at: 1, after: 2, do: enter_restart}]": "actions[0].after: 'after' counts",
     }
     for text, message in cases.items():
         with pytest.raises(ScenarioError) as caught:
@@ -202,6 +178,26 @@ def test_bad_scenarios_are_reported_with_file_line_column_and_entry(
         assert message in str(caught.value), str(caught.value)
     with pytest.raises(ScenarioError, match=r"did you mean .r1\.pos."):
         load_scenario("faults: [{when: 'r1.poss == home', kind: set}]", "bad.yaml", station)
+
+
+def test_the_scenario_keys_of_parallel_operations_are_read(
+    demo: tuple[Station, Planners],
+) -> None:
+    station, _ = demo
+    text = """
+config: {sequential: true}
+operator: {reject: 2}
+faults: [{when: 'r1.pos == bp1', after: 0.5, kind: disconnect, resource: r2}]
+actions: [{when: 'r2.pos == home', after: 1.5, do: start_intention, name: assemble_engine}]
+"""
+    scenario = load_scenario(text, "keys.yaml", station)
+    assert scenario.config.sequential is True
+    assert scenario.rejects == 2
+    [fault] = scenario.faults
+    [action] = scenario.actions
+    assert fault.after == 0.5 and fault.when is not None
+    assert action.after == 1.5 and action.when is not None
+    assert load_scenario("{}", "plain.yaml", station).config.sequential is False
 
 
 # -- restart mode (seed 001 VIII-A) ------------------------------------------------------------

@@ -138,7 +138,7 @@ def everyone(runner: Runner) -> frozenset[str]:
 def test_a_step_the_supervisor_holds_back_is_not_taken_and_the_plan_is_made_again() -> None:
     runner = runner_for(PRESS)
     state = runner.initial(0.0, {"curtain.hand_in": True})
-    plan = plan_of(runner, "press.down", ["press.lower"])
+    plan = state.transition_plan = plan_of(runner, "press.down", ["press.lower"])
     tick = Tick(runner, state, 1.0)
     assert runner.index.transition("press.lower").guard(tick.current())  # the model allows it
     assert not take(tick, plan, 0, supervised=True)
@@ -211,6 +211,27 @@ def test_a_controlled_recovery_step_is_taken_only_once_approved() -> None:
     result = runner.tick(result.state, Inputs(heartbeats=heard), 1.3)
     assert EventKind.RECOVERED in [e.kind for e in result.events]
     assert result.state.recovery is None
+
+
+def test_only_a_recovery_step_that_was_asked_for_can_be_answered() -> None:
+    """A person answers what the watch showed: an approval for a step not yet asked (a
+    stale page, a replayed request) is refused and nothing moves."""
+    runner = runner_for(PRESS)
+    heard = everyone(runner)
+    state = runner.initial(0.0, {"press.down": True})
+    state = runner.tick(
+        state, Inputs(observed={"part.present": False}, heartbeats=heard), 0.1
+    ).state
+    assert state.recovery is not None and state.recovery.asked == {0}
+    for step, why in ((3, "no such recovery step"), (0, "that step has not been asked for yet")):
+        tried = state.copy()
+        assert tried.recovery is not None
+        tried.recovery.asked.clear()
+        result = runner.tick(tried, Inputs(heartbeats=heard, actions=(Approve(step=step),)), 0.2)
+        [reply] = result.replies
+        assert not reply.accepted and reply.why == why
+        assert not [e for e in result.events if e.kind is EventKind.TAKEN]
+        assert result.state.values["press.down"] is True
 
 
 # -- the retry limit ---------------------------------------------------------------------------
@@ -549,21 +570,29 @@ def test_a_run_that_stops_says_what_it_waits_for() -> None:
 
 def test_a_recovery_with_every_way_out_rejected_holds_quietly_and_says_whom_it_waits_for() -> None:
     """E2 with both offered recoveries rejected: the station plans once more, finds nothing,
-    says so once and holds; no forbidden/plan pair every tick, and the stop names the
-    engineer.  Once the operator takes the filters off by hand, production goes on."""
+    says so once and holds; no forbidden/plan pair every tick, other work coming to an end
+    does not bring the rejected steps back, and the stop names the engineer.  Once the
+    operator takes the filters off by hand, production goes on."""
     station = load_station(MODEL.read_text(), str(MODEL))
     planners = Planners(TransitionPlanner(station.model), OperationPlanner(station))
     path = (
         ROOT / "models" / "scenarios" / "faults" / "reject_oil_filter_removal_and_alternative.yaml"
     )
-    scenario = replace(load_scenario(path.read_text(), str(path), station), until=40.0)
+    scenario = load_scenario(path.read_text(), str(path), station)
     events = list(play(station, scenario, planners))
-    after = [e for e in events if e.time >= 22.0]
+    [mounted] = [e.time for e in events if e.kind is EventKind.FAULT]
+    rejects = [e.time for e in events if e.subject == "reject"]
+    assert len(rejects) == 2
+    after = [e for e in events if e.time >= rejects[-1]]
     plans = [e for e in after if e.kind is EventKind.PLAN]
-    assert [(p.subject, p.detail["status"]) for p in plans] == [("TP w/MT", "unreachable")]
+    # planned once more when the state changed (the operator's card, a robot arriving), and
+    # the rejections stand: nothing they read or write changed
+    assert plans and {(p.subject, p.detail["status"]) for p in plans} == {
+        ("TP w/MT", "unreachable")
+    }
     assert [e.subject for e in after if e.kind is EventKind.ERROR] == ["no recovery plan"]
     # the violation is said once, when it is seen, however often recovery plans again
-    assert [e.time for e in events if e.kind is EventKind.FORBIDDEN] == [20.0]
+    assert [e.time for e in events if e.kind is EventKind.FORBIDDEN] == [mounted]
     last = events[-1]
     assert last.kind is EventKind.STOPPED
     [waiting] = last.detail["waiting_for"]
@@ -571,7 +600,8 @@ def test_a_recovery_with_every_way_out_rejected_holds_quietly_and_says_whom_it_w
 
     # a person puts it right by hand: the state changed, and production goes on
     removed = {f"oil_filter{k}.state": "none" for k in (1, 2, 3)}
-    fix = ScheduledFault(Fault(FaultKind.SET, values=removed), at=30.0, text="taken off by hand")
+    by_hand = rejects[-1] + 8.0
+    fix = ScheduledFault(Fault(FaultKind.SET, values=removed), at=by_hand, text="taken off by hand")
     fixed = replace(scenario, faults=(*scenario.faults, fix), until=400.0)
     events = list(play(station, fixed, planners))
     assert events[-1].kind is EventKind.DONE

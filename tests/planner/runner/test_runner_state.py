@@ -45,6 +45,7 @@ def _filled() -> RunnerState:
         rechecked=("checked",),
         maintenance=_plan(),
         maintenance_for="tighten",
+        maintenance_due=True,
         last_heard={"r1": 1.0},
         unavailable={"r1"},
         effect_enabled_since={"r1.arrive": 1.0},
