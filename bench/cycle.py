@@ -1,6 +1,7 @@
 """Cycle time: the demo's nominal assembly and E1-E9, operations one at a time or in parallel.
 
     python -m bench.cycle [--output bench/results/cycle.md]
+    python -m bench.cycle --devices models/demo_station.devices.yaml [--only NAME,...]
 
 Each scenario is played headless on the simulated world (`sp run --speed 0`'s player), so its
 times are simulated seconds and exact: the cycle is the run's length, from its `started` to
@@ -9,21 +10,31 @@ plan levels and flags of the non-routine planning actions, as seed 000 Table 1 w
 whether they contain the paper's (the scenario's `expect.recovery`, in order), and the
 operator's maintenance steps against the scenario's `expect.operator`.
 
-The modes: *sequential*, one operation at a time (the runner's default today); *parallel*,
-operations the operation plan calls independent started at once (`parallel_operations`).
-Issue 25 adds a third, parallel with durations learned from the station's history, and
-targets nominal <= 52 s and E1-E9 together <= 80 % of their sequential time.
+The modes: *sequential*, one operation at a time (`sp run --sequential`, the old default);
+*parallel*, operations the operation plan calls independent started at once (the runner's
+default); *learned*, parallel, and among operation plans of the minimal length the one of
+the least expected makespan, each operation's duration learned from the station's history:
+here the parallel plays of all the scenarios above, as a station that ran each once
+(`app.history.durations`: the median of an operation's last five times).  Issue 25's
+targets: nominal <= 52 s and E1-E9 together <= 80 % of their sequential time.
+
+With `--devices FILE` the scenarios (`--only`, by default E2 and E6) are played as
+`sp run --devices` plays them: on the device file's emulators, through the real `ur_rtde`
+and Modbus clients, in real time, sequential and parallel; the seconds are then wall-clock
+seconds and vary a little from run to run (`bench/results/cycle_devices.md`).
 """
 
 from __future__ import annotations
 
 import argparse
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
+from app.history.durations import learned
+from app.station import recovery_types
 from app.station.player import Planners, play
 from app.station.scenario import Scenario, load_scenario
 from bench.planning import machine
@@ -32,14 +43,14 @@ from planner.model.station import Station
 from planner.planning.operation_planner import OperationPlanner
 from planner.planning.transition_planner import TransitionPlanner
 from planner.reading import load_station
-from planner.runner import Event, EventKind
+from planner.runner import Event, EventKind, OperationState
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "bench" / "results"
 MODEL = ROOT / "models" / "demo_station.yaml"
 SCENARIOS = ROOT / "models" / "scenarios"
 NAMES = ("nominal", *sorted(p.stem for p in SCENARIOS.glob("e[1-9]_*.yaml")))
-MODES = ("sequential", "parallel")
+MODES = ("sequential", "parallel", "learned")
 
 
 @dataclass(frozen=True)
@@ -52,34 +63,15 @@ class Cycle:
     paper: tuple[str, ...]  # the scenario's expected recovery types
     operator: tuple[str, ...]  # maintenance steps the operator reported done
     expected_operator: tuple[str, ...] | None
+    at_once: int = 0  # the most operations executing at the same time
 
     @property
     def recovers_as_the_paper(self) -> bool:
-        """Ours begin with the paper's first type and hold all of them in order, as
-        tests/planner/runner/test_runner.py checks Table 1."""
-        if not self.paper:
-            return True
-        if not self.recovery or not _matches(self.paper[0], self.recovery[0]):
-            return False
-        ours = iter(self.recovery)
-        return all(any(_matches(p, o) for o in ours) for p in self.paper)
-
-
-def _label(event: Event) -> str:
-    flags = " ".join(f"w/{f}" for f in event.detail.get("flags", ()))
-    return f"{event.detail['level']} {flags}".strip()
-
-
-def _matches(paper: str, ours: str) -> bool:
-    level, *flags = paper.replace(" w/", " ").split()
-    our_level, *our_flags = ours.replace(" w/", " ").split()
-    return level == our_level and set(flags) <= set(our_flags)
+        return recovery_types.as_the_paper(self.paper, self.recovery)
 
 
 def with_mode(scenario: Scenario, mode: str) -> Scenario:
-    return replace(
-        scenario, config=replace(scenario.config, parallel_operations=mode != "sequential")
-    )
+    return replace(scenario, config=replace(scenario.config, sequential=mode == "sequential"))
 
 
 def cycle_of(name: str, mode: str, events: Sequence[Event], scenario: Scenario) -> Cycle:
@@ -91,21 +83,9 @@ def cycle_of(name: str, mode: str, events: Sequence[Event], scenario: Scenario) 
     outcome = (
         str(ended.detail.get("outcome")) if ended else f"{events[-1].kind}: {events[-1].subject}"
     )
-    faults = [k for k, e in enumerate(events) if e.kind is EventKind.FAULT]
-    recovery: list[str] = []
-    if faults:
-        routine = ("goals", "intentions")
-        recovery = [
-            _label(e)
-            for e in events[faults[0] :]
-            if e.kind is EventKind.PLAN and e.detail["reason"] not in routine
-        ]
+    recovery = [recovery_types.label(e) for e in recovery_types.recovery(events)]
     expect: dict[str, Any] = dict(scenario.expect)
-    operator = tuple(
-        str(e.detail["transition"])
-        for e in events
-        if e.kind is EventKind.OPERATOR and e.subject == "maintenance done"
-    )
+    operator = tuple(recovery_types.operator_work(events))
     expected = expect.get("operator")
     return Cycle(
         name,
@@ -116,37 +96,117 @@ def cycle_of(name: str, mode: str, events: Sequence[Event], scenario: Scenario) 
         tuple(expect.get("recovery", ())),
         operator,
         tuple(expected) if expected is not None else None,
+        most_at_once(events),
     )
 
 
+def most_at_once(events: Sequence[Event]) -> int:
+    """The most operations that were executing at the same time in the play."""
+    executing: set[str] = set()
+    most = 0
+    for e in events:
+        if e.kind is EventKind.OPERATION:
+            if e.detail.get("after") == OperationState.EXECUTING:
+                executing.add(e.subject)
+            else:
+                executing.discard(e.subject)
+            most = max(most, len(executing))
+    return most
+
+
 def measure(names: Sequence[str] = NAMES, modes: Sequence[str] = MODES) -> list[Cycle]:
+    """Each scenario in each mode; *learned* plays with what the *parallel* plays taught."""
     station = load_station(MODEL.read_text(), str(MODEL))
     planners = Planners(TransitionPlanner(station.model), OperationPlanner(station))
-    return [_play(station, planners, name, mode) for name in names for mode in modes]
+    played: dict[tuple[str, str], list[Event]] = {}
+    for mode in ("sequential", "parallel"):
+        for name in names:
+            if mode in modes or ("learned" in modes and mode == "parallel"):
+                played[(name, mode)] = _play(station, planners, name, mode)
+    history = [e for name in names for e in played[(name, "parallel")]] if played else []
+    if "learned" in modes:
+        durations = learned(history)
+        for name in names:
+            played[(name, "learned")] = _play(station, planners, name, "learned", durations)
+    return [
+        cycle_of(name, mode, played[(name, mode)], _scenario(station, name))
+        for name in names
+        for mode in modes
+    ]
 
 
-def _play(station: Station, planners: Planners, name: str, mode: str) -> Cycle:
+def measure_on_devices(
+    device_path: str, names: Sequence[str], modes: Sequence[str] = ("sequential", "parallel")
+) -> list[Cycle]:
+    """Each scenario in each mode on emulated devices, in real time (`sp run --devices`)."""
+    from app.station.emulated import emulate, read_device_file, start_values
+    from app.station.scenario import person_delay_of
+
+    station = load_station(MODEL.read_text(), str(MODEL))
+    planners = Planners(TransitionPlanner(station.model), OperationPlanner(station))
+    planners.transition.prepare()
+    devices = read_device_file(device_path, station)
+    cycles = []
+    for name in names:
+        for mode in modes:
+            scenario = with_mode(_scenario(station, name), mode)
+            start = start_values(station, scenario.start)
+            answer = person_delay_of(scenario, station)
+            with emulate(station, devices, start, answer_after=answer) as emulated:
+                silent = emulated.devices.wait_until_ready(30.0)
+                if silent:
+                    raise SystemExit(f"{device_path}: no answer from {', '.join(silent)}")
+                events = list(
+                    play(
+                        station,
+                        scenario,
+                        planners,
+                        devices=emulated.devices,
+                        clock=time.monotonic,
+                    )
+                )
+            cycles.append(cycle_of(name, mode, events, _scenario(station, name)))
+            print(f"{name} {mode}: {_seconds(cycles[-1])} s", flush=True)
+    return cycles
+
+
+def _scenario(station: Station, name: str) -> Scenario:
     path = SCENARIOS / f"{name}.yaml"
-    scenario = with_mode(load_scenario(path.read_text(), str(path), station), mode)
-    events = list(play(station, scenario, planners))
-    return cycle_of(name, mode, events, scenario)
+    return load_scenario(path.read_text(), str(path), station)
+
+
+def _play(
+    station: Station,
+    planners: Planners,
+    name: str,
+    mode: str,
+    durations: Mapping[str, float] | None = None,
+) -> list[Event]:
+    scenario = with_mode(_scenario(station, name), mode)
+    return list(play(station, scenario, planners, learned=durations))
 
 
 def _seconds(cycle: Cycle) -> str:
     return "did not finish" if cycle.seconds is None else f"{cycle.seconds:.1f}"
 
 
-def report(cycles: Sequence[Cycle]) -> str:
+def report(cycles: Sequence[Cycle], on: str = "") -> str:
     modes = list(dict.fromkeys(c.mode for c in cycles))
     by = {(c.scenario, c.mode): c for c in cycles}
     names = list(dict.fromkeys(c.scenario for c in cycles))
     lines = [
         f"# Cycle time\n\n`python -m bench.cycle`, {time.strftime('%Y-%m-%d')}, {revision()}. "
-        f"Machine: {machine()} (simulated seconds: the machine does not change them)",
+        f"Machine: {machine()} "
+        + (
+            f"(on the {on}: wall-clock seconds)"
+            if on
+            else "(simulated seconds: the machine does not change them)"
+        ),
         "",
         "| scenario | " + " | ".join(f"{m} s" for m in modes) + " | "
-        + " | ".join(f"recovery, {m}" for m in modes) + " | operator's work as expected |",
-        "| --- | " + " | ".join(["---"] * (2 * len(modes))) + " | --- |",
+        + " | ".join(f"recovery, {m}" for m in modes) + " | operator's work as expected | "
+        + " | ".join(f"most at once, {m}" for m in modes) + " |",
+        "| --- | " + " | ".join(["---"] * (3 * len(modes))) + " | --- |",
     ]  # fmt: skip
     for name in names:
         row = [by[(name, m)] for m in modes]
@@ -161,26 +221,42 @@ def report(cycles: Sequence[Cycle]) -> str:
             if c.expected_operator is not None and c.operator != c.expected_operator
         ]  # fmt: skip
         said = "yes" if not operator else "**no** in " + ", ".join(operator)
+        at_once = " | ".join(str(c.at_once) for c in row)
         lines.append(
-            f"| {name} | " + " | ".join(seconds) + " | " + " | ".join(recovery) + f" | {said} |"
-        )
+            f"| {name} | " + " | ".join(seconds) + " | " + " | ".join(recovery) + f" | {said} | "
+            + at_once + " |"
+        )  # fmt: skip
     experiments = [n for n in names if n != "nominal"]
     lines.append("")
     for mode in modes:
         total = [by[(n, mode)].seconds for n in experiments]
         if experiments and all(t is not None for t in total):
-            lines.append(f"E1-E9 together, {mode}: {sum(t for t in total if t is not None):.1f} s.")
+            together = sum(t for t in total if t is not None)
+            lines.append(
+                f"{', '.join(experiments) if on else 'E1-E9'} together, {mode}: {together:.1f} s."
+            )
     return "\n".join(lines) + "\n"
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
-    parser.add_argument("--output", type=Path, default=RESULTS / "cycle.md", help="%(default)s")
+    parser.add_argument("--output", type=Path, help="bench/results/cycle.md (or cycle_devices.md)")
+    parser.add_argument("--devices", help="a device file: play on its emulators, in real time")
+    parser.add_argument(
+        "--only", help="scenarios, comma-separated (default: all; E2, E6 on devices)"
+    )
     args = parser.parse_args()
-    text = report(measure())
+    only = tuple(args.only.split(",")) if args.only else None
+    if args.devices:
+        names = only or ("e2_oil_filter_early", "e6_r2_disconnects_above_engine")
+        text = report(measure_on_devices(args.devices, names), on=f"devices of {args.devices}")
+        output = args.output or RESULTS / "cycle_devices.md"
+    else:
+        text = report(measure(only or NAMES))
+        output = args.output or RESULTS / "cycle.md"
     print(text)
-    args.output.parent.mkdir(parents=True, exist_ok=True)
-    args.output.write_text(text)
+    output.parent.mkdir(parents=True, exist_ok=True)
+    output.write_text(text)
 
 
 if __name__ == "__main__":

@@ -15,4 +15,7 @@ def test_a_short_cycle_benchmark_reports_each_mode_and_the_papers_recovery() -> 
     text = report(cycles)
     row = next(line for line in text.splitlines() if line.startswith("| e1_bolt_undone |"))
     assert f"| {sequential.seconds:.1f} |" in row
-    assert text.count("| --- ") == 2 * len(MODES) + 2
+    assert text.count("| --- ") == 3 * len(MODES) + 2
+    parallel = next(c for c in cycles if c.mode == "parallel")
+    assert sequential.at_once == 1 and parallel.at_once >= 2
+    assert row.endswith(f"| {sequential.at_once} | {parallel.at_once} | {cycles[2].at_once} |")

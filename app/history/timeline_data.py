@@ -120,6 +120,25 @@ class Timeline:
     def lane(self, key: str) -> Lane:
         return next(lane for lane in self.lanes if lane.key == key)
 
+    @property
+    def at_once(self) -> tuple[int, float]:
+        """The most operations that executed at once, and for how many seconds two or more
+        did: what parallel operations gave this run (section 3.4)."""
+        lanes = {lane.key for lane in self.lanes if lane.group is LaneGroup.OPERATIONS}
+        edges = sorted(
+            edge
+            for bar in self.bars
+            if bar.lane in lanes and bar.kind is BarKind.EXECUTING
+            for edge in ((bar.start, 1), (bar.end, -1))
+        )  # an end sorts before a start at the same time: back to back is not at once
+        most, running, together, since = 0, 0, 0.0, 0.0
+        for time, step in edges:
+            if running >= 2:
+                together += time - since
+            running, since = running + step, time
+            most = max(most, running)
+        return most, together
+
 
 def pack_operations(
     bars: Sequence[Bar], marks: Sequence[Mark]

@@ -346,6 +346,11 @@ def test_timeline_page_shows_the_run_from_the_audit_log(station: RunningStation)
     )
     store, name = station.built.server.store, station.live.name
     station.wait(lambda: bool(run_history(store, name).runs), 20)
+    # operations in parallel: the overview names them, the timeline counts them
+    station.wait(lambda: len(station.live.view.state.executing()) >= 2, 30)
+    overview = client.get("/station/fragments/overview")
+    at_once = re.search(r'data-running="(\d+)">\d+ operations at once: ', overview.text)
+    assert at_once is not None and int(at_once.group(1)) >= 2, overview.text
     running = client.get("/station/timeline")
     assert 'data-outcome="running"' in running.text
     assert '<svg class="timeline-chart"' in running.text
@@ -357,6 +362,8 @@ def test_timeline_page_shows_the_run_from_the_audit_log(station: RunningStation)
     (run,) = run_history(store, name).runs
     page = client.get("/station/timeline", params={"run": run.first})
     assert 'data-outcome="cancelled"' in page.text
+    assert re.search(r"<span data-at-once>up to [2-9] operations at once, for ", page.text)
+    assert re.search(r"cycle time <span data-cycle-time>\d+\.\d s</span>", page.text)
     assert f'href="/station/timeline?run={run.first}"' in page.text
     assert client.get("/station/timeline", params={"run": run.first + 10_000}).status_code == 404
     operator, _ = signed_in(station, "operator")

@@ -47,6 +47,7 @@ class RunRow:
     intentions: str  # in words
     outcome: str
     cycle_time: str
+    at_once: str  # how many operations executed at once, and for how long
     losses: tuple[tuple[str, str], ...]  # (cause, time lost), the most first
     lost: str
 
@@ -68,9 +69,17 @@ def run_row(history: History, run: Run, station: Station, words: Wording) -> Run
         words.names(run.intentions) if run.intentions else "no intention",
         OUTCOME_WORDS[run.outcome],
         seconds(run.cycle_time),
+        at_once_words(found),
         tuple((loss.cause, seconds(loss.seconds)) for loss in found.losses),
         seconds(found.lost),
     )
+
+
+def at_once_words(found: Timeline) -> str:
+    most, together = found.at_once
+    if most < 2:
+        return "one operation at a time"
+    return f"up to {most} operations at once, for {seconds(together)}"
 
 
 @router.get("/station/timeline")

@@ -15,7 +15,9 @@ from hypothesis import strategies as st
 from app.history import timeline_drawing
 from app.history.runs import Happening, Run, find_runs, from_events
 from app.history.timeline import BarKind, Timeline, timeline
+from app.history.timeline_data import Bar, Lane, LaneGroup
 from app.station.player import Planners, play
+from app.station.runs import Outcome
 from app.station.scenario import load_scenario
 from planner.model.station import Station
 from planner.planning.operation_planner import OperationPlanner
@@ -58,6 +60,33 @@ def test_e6_r2_fails_waits_for_a_person_and_the_time_lost_is_its_silence(
     causes = dict((loss.cause, loss.seconds) for loss in found.losses)
     assert causes.get("robot 2 stopped answering", 0) > 1.0, causes
     assert 0 < found.lost <= run.cycle_time
+
+
+def test_e6_shows_operations_that_ran_at_once(
+    e6: tuple[list[Happening], Run, Timeline],
+) -> None:
+    """Both robots busy in the same seconds (operations in parallel, section 3.4)."""
+    _, run, found = e6
+    most, together = found.at_once
+    lanes = [lane for lane in found.lanes if lane.group is LaneGroup.OPERATIONS]
+    assert 2 <= most <= len(lanes)
+    assert 1.0 < together < run.cycle_time
+
+
+def test_operations_back_to_back_are_not_at_once() -> None:
+    run = Run(0, 9, 0.0, 10.0, ("a",), Outcome.FINISHED)
+    lanes = (Lane("operations:x", "x", "x", LaneGroup.OPERATIONS),)
+
+    def bar(start: float, end: float, kind: BarKind = BarKind.EXECUTING) -> Bar:
+        return Bar("operations:x", start, end, "x", "x", kind)
+
+    def at_once(*bars: Bar) -> tuple[int, float]:
+        return Timeline(run, lanes, bars, (), ()).at_once
+
+    assert at_once(bar(0, 2), bar(2, 4)) == (1, 0.0)
+    assert at_once(bar(0, 3), bar(1, 4), bar(2, 5)) == (3, 3.0)
+    assert at_once(bar(0, 3), bar(1, 4, BarKind.ERROR)) == (1, 0.0)
+    assert at_once() == (0, 0.0)
 
 
 def test_e6_labels_are_words_not_model_names(
@@ -173,4 +202,6 @@ def test_bars_of_one_lane_never_overlap_and_time_lost_is_counted_once(
         assert all(loss.seconds > 0 for loss in drawn.losses)
         assert len({loss.cause for loss in drawn.losses}) == len(drawn.losses)
         assert drawn.lost <= run.cycle_time + 1e-6
+        most, together = drawn.at_once
+        assert 0 <= together <= run.cycle_time + 1e-6 and (most >= 2 or together == 0)
         ElementTree.fromstring(str(timeline_drawing.draw(drawn, "random")))
