@@ -102,7 +102,7 @@ def _save(
     built: TransitionPlanner, directory: Path, order_path: Path, bad_path: Path, specs_path: Path
 ) -> None:
     try:
-        directory.mkdir(parents=True, exist_ok=True)
+        directory.mkdir(mode=0o700, parents=True, exist_ok=True)
         with tempfile.TemporaryDirectory(dir=directory) as tmp:
             order_tmp, bad_tmp = Path(tmp) / "order.json", Path(tmp) / "bad.dddmp"
             specs_tmp = Path(tmp) / "specifications.json"

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import os
 import sqlite3
+import stat
 import threading
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -10,7 +12,7 @@ from typing import TYPE_CHECKING, Any
 
 from alembic import command
 from alembic.config import Config
-from sqlalchemy import Engine, create_engine, event
+from sqlalchemy import Engine, create_engine, event, make_url
 from sqlalchemy.orm import Session, sessionmaker
 
 if TYPE_CHECKING:
@@ -57,10 +59,31 @@ def open_store(url: str) -> Store:
     connect_args: dict[str, Any] = {}
     if url.startswith("sqlite"):
         connect_args = {"check_same_thread": False, "timeout": 30}
+        private_file(make_url(url).database)
     engine = create_engine(url, connect_args=connect_args)
     if engine.dialect.name == "sqlite":
         event.listen(engine, "connect", _sqlite_pragmas)
     return Store(url, engine, sessionmaker(engine, expire_on_commit=False))
+
+
+def private_file(database: str | None) -> None:
+    """The SQLite file readable by its owner only (0600), created so before SQLite opens it
+    (its -wal and -shm files take the database file's mode), in a folder of mode 0700 where
+    we create that too: the store holds password hashes, models and the whole audit log.  An
+    existing file with wider permissions is narrowed; one we do not own is left alone."""
+    if not database or database == ":memory:" or database.startswith("file:"):
+        return
+    path = Path(database)
+    if not path.parent.exists():
+        path.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
+    try:
+        descriptor = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+    except FileExistsError:
+        mode = path.stat().st_mode
+        if mode & (stat.S_IRWXG | stat.S_IRWXO) and path.stat().st_uid == os.getuid():
+            path.chmod(stat.S_IMODE(mode) & 0o700)
+        return
+    os.close(descriptor)
 
 
 def _sqlite_pragmas(connection: sqlite3.Connection, _record: object) -> None:

@@ -85,7 +85,7 @@ def read_keys(path: Path) -> StationKeys:
 def create_keys(path: Path) -> StationKeys:
     """A new key file (mode 0600); refuses to overwrite one."""
     master = secrets.token_bytes(32)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    path.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
     try:
         descriptor = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
     except FileExistsError:

@@ -6,6 +6,12 @@ style), so the policy forbids everything else, and a script slipped into a page 
 model text, a user name or a note does not run.  Framing is refused (click-jacking on a
 control page), MIME sniffing too, and referrers leave only within the station.
 
+Nothing the station answers is kept by a browser or a proxy (`Cache-Control: no-store`):
+pages, fragments, the API and errors show live station data, names and tokens, and the
+back button of a shared terminal after sign-out must not bring them back.  The static files
+(`/static`, the same for everyone) are left to the browser's caching, and an answer that set
+its own (the icon) keeps it.
+
 The API's documentation pages (/docs, /redoc) are FastAPI's: they load Swagger UI and ReDoc
 from their CDN and start them with an inline script, so they get a policy that allows that and
 nothing more; they show no station data.
@@ -44,6 +50,7 @@ _FIXED = (
     (b"referrer-policy", b"same-origin"),
 )
 _NAMES = frozenset((b"content-security-policy", *(name for name, _ in _FIXED)))
+_NO_STORE = (b"cache-control", b"no-store")
 
 
 def headers_for(path: str) -> list[tuple[bytes, bytes]]:
@@ -63,6 +70,7 @@ class SecurityHeaders:
             await self.app(scope, receive, send)
             return
         added = headers_for(scope["path"])
+        fresh = not scope["path"].startswith("/static/")
         started = False
 
         async def send_with_headers(message: Message) -> None:
@@ -70,6 +78,8 @@ class SecurityHeaders:
             if message["type"] == "http.response.start":
                 started = True
                 kept = [h for h in message.get("headers", []) if h[0].lower() not in _NAMES]
+                if fresh and not any(name.lower() == _NO_STORE[0] for name, _ in kept):
+                    kept.append(_NO_STORE)
                 message = {**message, "headers": [*kept, *added]}
             await send(message)
 

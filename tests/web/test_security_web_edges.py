@@ -384,6 +384,35 @@ def test_every_kind_of_answer_carries_the_security_headers(station: RunningStati
         assert_secured(answer)
 
 
+def test_no_answer_with_station_data_is_kept_by_a_browser_or_a_proxy(
+    station: RunningStation,
+) -> None:
+    """`Cache-Control: no-store` on every answer but the static files: after sign-out the
+    back button of a shared terminal shows nothing of the station."""
+    anonymous = station.client()
+    client, token = engineer(station)
+    api = {"authorization": f"Bearer {station.token(client, 'engineer')}"}
+    answers = (
+        anonymous.get("/login"),
+        anonymous.get("/no/such/page"),
+        anonymous.get("/api/status"),
+        client.get("/station"),
+        client.get("/station/fragments/status"),
+        client.get("/model"),
+        client.get("/station/timeline"),
+        client.post("/model/validate", data={"csrf_token": token, "text": "x"}, headers=HX),
+        client.get("/api/station", headers=api),
+        client.get("/healthz"),
+    )
+    for answer in answers:
+        where = f"{answer.request.method} {answer.request.url} ({answer.status_code})"
+        assert answer.headers.get("cache-control") == "no-store", where
+    script = anonymous.get("/static/js/hmi.js")
+    assert script.status_code == 200 and "no-store" not in script.headers.get("cache-control", "")
+    icon = anonymous.get("/favicon.ico")
+    assert icon.headers.get("cache-control") == "public, max-age=86400"
+
+
 def test_an_unexpected_error_still_carries_the_security_headers() -> None:
     async def broken(scope: Scope, receive: Receive, send: Send) -> None:
         raise RuntimeError("a bug")
@@ -565,6 +594,26 @@ def closed_after(sock: socket.socket, send: Callable[[], None] = lambda: None) -
 def connect(url: str) -> socket.socket:
     host, port = url.removeprefix("http://").split(":")
     return socket.create_connection((host, int(port)), timeout=5)
+
+
+def test_an_event_stream_ends_with_its_session(station: RunningStation) -> None:
+    """Signed out elsewhere (another tab, or an admin ending the session), a page's event
+    stream is told so and closed: it does not go on showing the station to nobody."""
+    url = station.serve()
+    with httpx.Client(base_url=url, timeout=30) as browser:
+        sign_in_with_forms(browser, "auditor", first="auditor" not in station.changed)
+        station.changed.add("auditor")
+        token = form_token(browser.get("/alarms").text)
+        with browser.stream("GET", "/events") as events:
+            lines = events.iter_lines()
+            assert next(lines).startswith("retry:")
+            with httpx.Client(base_url=url, cookies=browser.cookies) as other_tab:
+                out = other_tab.post("/logout", data={"csrf_token": token})
+                assert out.status_code in (200, 303), out.text
+            rest = list(lines)  # the stream ends by itself (else httpx's 30 s time-out)
+        assert "event: signed-out" in rest, rest[-6:]
+        last = rest.index("event: signed-out")
+        assert [line for line in rest[last:] if line] == ["event: signed-out", "data: /login"]
 
 
 def test_a_body_that_never_arrives_does_not_hold_the_connection(

@@ -124,3 +124,36 @@ def test_the_last_admin_can_neither_step_down_nor_be_disabled(station: RunningSt
     assert not signed_in(admin)
     changes = [(r["name"], r["role"]) for r in user_records(station, "role changed")]
     assert changes == [("auditor", "admin"), ("admin", "engineer")]
+
+
+def test_a_refused_change_is_audited_as_refused_and_a_done_one_redirects(
+    station: RunningStation,
+) -> None:
+    """The audit holds only what happened: an "add" of a name that exists is a refusal, not
+    a second "user added"; after a change the page is reached by a redirect, so a reload
+    does not send the form again."""
+    admin = station.client()
+    token = station.login(admin, "admin")
+    form = {"name": "berit", "role": "auditor", "password": "berit-first-pw", "csrf_token": token}
+    done = admin.post("/users", data=form, follow_redirects=False)
+    assert done.status_code == 303 and done.headers["location"] == "/users"
+    page = admin.get("/users")
+    assert "Added berit (auditor)" in page.text and 'data-user="berit"' in page.text
+    assert "Added berit" not in admin.get("/users").text  # said once
+    again = admin.post("/users", data=form, follow_redirects=False)
+    assert again.status_code == 409 and "there is already a user &#39;berit&#39;" in again.text
+    assert [r["name"] for r in user_records(station, "added")].count("berit") == 1
+    [refused] = [r for r in user_records(station, "add refused") if r["name"] == "berit"]
+    assert refused["why"] == "there is already a user 'berit'" and refused["by"] == "admin"
+
+    # refusals inside the change (the row as it is decides) are audited as refused too
+    role = {"name": "berit", "role": "auditor", "csrf_token": token}
+    assert admin.post("/users/role", data=role).status_code == 409
+    assert not [r for r in user_records(station, "role changed") if r["name"] == "berit"]
+    [why] = [r["why"] for r in user_records(station, "role changed refused")]
+    assert why == "berit is already an auditor"
+    mine = {"name": "admin", "disabled": "true", "csrf_token": token}
+    assert admin.post("/users/disable", data=mine).status_code == 409
+    assert [r["why"] for r in user_records(station, "disabled refused")] == [
+        "you cannot disable yourself"
+    ]

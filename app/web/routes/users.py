@@ -39,6 +39,7 @@ from app.web.server import Server
 
 router = APIRouter(include_in_schema=False)
 NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_.-]{0,63}$")
+FLASH = "users_message"  # what a change said, shown once on the page it redirects to
 UserName = Annotated[str, Form(max_length=USER_CHARS)]
 Password = Annotated[str, Form(max_length=PASSWORD_CHARS)]
 RoleName = Annotated[str, Form(max_length=ROLE_CHARS)]
@@ -104,6 +105,10 @@ def _page(
 ) -> Response:
     with srv.store.sessions() as session:
         users = user_rows(session)
+    if "message" not in extra and "error" not in extra:
+        said = request.session.pop(FLASH, None)
+        if isinstance(said, str):
+            extra["message"] = said
     return render(
         request,
         "users.html",
@@ -114,6 +119,28 @@ def _page(
         roles=ROLES,
         **extra,
     )
+
+
+def _done(request: Request, message: str) -> Response:
+    """After a change: back to the page by a redirect (a reload does not send the form
+    again), the message carried over in the session."""
+    request.session[FLASH] = message
+    return RedirectResponse("/users", status_code=303)
+
+
+def _refused(
+    request: Request,
+    caller: Caller,
+    srv: Server,
+    what: str,
+    detail: dict[str, object],
+    status_code: int,
+    why: str,
+) -> Response:
+    """A change refused: audited as refused, with why (never as done), and the page says so."""
+    entry = AuditEntry(AuditKind.USER, f"{what} refused", caller.name, "", {**detail, "why": why})
+    audit.write(srv.store, srv.live.name, [entry], srv.live.wall())
+    return _page(request, caller, srv, status_code, error=why)
 
 
 @router.get("/users")
@@ -138,8 +165,9 @@ def add(
         problem = f"unknown role '{role}'; use one of {', '.join(ROLES)}"
     else:
         problem = password_problem(name, password)
+    detail: dict[str, object] = {"name": name, "role": role}
     if problem:
-        return _page(request, caller, srv, 422, error=problem)
+        return _refused(request, caller, srv, "add", detail, 422, problem)
 
     def added(session: Session) -> bool:
         if user_named(session, name) is not None:
@@ -147,19 +175,17 @@ def add(
         add_user(session, name, role, password, must_change=True)
         return True
 
-    entry = AuditEntry(AuditKind.USER, "added", caller.name, "", {"name": name, "role": role})
-    try:
-        done = audit.write(srv.store, srv.live.name, [entry], srv.live.wall(), also=added)
+    entry = AuditEntry(AuditKind.USER, "added", caller.name, "", detail)
+    try:  # the record only when the row was added
+        done = audit.write(
+            srv.store, srv.live.name, lambda ok: [entry] if ok else [], srv.live.wall(), added
+        )
     except IntegrityError:  # another station of the same database took the name just now
         done = False
     if not done:
-        return _page(request, caller, srv, 409, error=f"there is already a user '{name}'")
-    return _page(
-        request,
-        caller,
-        srv,
-        message=f"Added {name} ({role}); they choose a password at first sign-in",
-    )
+        why = f"there is already a user '{name}'"
+        return _refused(request, caller, srv, "add", detail, 409, why)
+    return _done(request, f"Added {name} ({role}); they choose a password at first sign-in")
 
 
 @router.post("/users/disable")
@@ -170,9 +196,11 @@ def disable(
     name: UserName,
     disabled: Annotated[bool, Form()],
 ) -> Response:
-    if name == caller.name:
-        raise HTTPException(409, "you cannot disable yourself")
     subject = "disabled" if disabled else "enabled"
+    if name == caller.name:
+        return _refused(
+            request, caller, srv, subject, {"name": name}, 409, "you cannot disable yourself"
+        )
     now = srv.live.wall()
     detail: dict[str, object] = {"name": name}
 
@@ -183,7 +211,7 @@ def disable(
             detail["sessions_ended"] = user_sessions.revoke_all(session, user.id, "disabled", now)
 
     _write(srv, AuditEntry(AuditKind.USER, subject, caller.name, "", detail), now, change)
-    return _page(request, caller, srv, message=f"{name} is {subject}")
+    return _done(request, f"{name} is {subject}")
 
 
 @router.post("/users/password")
@@ -197,10 +225,11 @@ def reset_password(
     """A new first-login password for someone who forgot theirs: they must change it at their
     next sign-in, and whatever they were signed in with ends now."""
     if name == caller.name:
-        raise HTTPException(409, "change your own password with Change password (/password)")
+        why = "change your own password with Change password (/password)"
+        return _refused(request, caller, srv, "password reset", {"name": name}, 409, why)
     problem = password_problem(name, password)
     if problem:
-        return _page(request, caller, srv, 422, error=problem)
+        return _refused(request, caller, srv, "password reset", {"name": name}, 422, problem)
     now = srv.live.wall()
     detail: dict[str, object] = {"name": name}
 
@@ -211,12 +240,7 @@ def reset_password(
         detail["sessions_ended"] = user_sessions.revoke_all(session, user.id, "password reset", now)
 
     _write(srv, AuditEntry(AuditKind.USER, "password reset", caller.name, "", detail), now, reset)
-    return _page(
-        request,
-        caller,
-        srv,
-        message=f"{name} has a new first-login password; they choose their own",
-    )
+    return _done(request, f"{name} has a new first-login password; they choose their own")
 
 
 @router.post("/users/role")
@@ -231,9 +255,8 @@ def change_role(
     their next sign-in.  The last enabled admin may not step down (nobody could manage the
     users any more); an admin who does step down is signed out with the rest."""
     if role not in ROLES:
-        return _page(
-            request, caller, srv, 422, error=f"unknown role '{role}'; use one of {', '.join(ROLES)}"
-        )
+        why = f"unknown role '{role}'; use one of {', '.join(ROLES)}"
+        return _refused(request, caller, srv, "role change", {"name": name, "role": role}, 422, why)
     now = srv.live.wall()
     detail: dict[str, object] = {"name": name, "role": role}
 
@@ -251,7 +274,7 @@ def change_role(
     if name == caller.name:  # their own session ended with the others
         request.session.clear()
         return RedirectResponse("/login", status_code=303)
-    return _page(request, caller, srv, message=f"{name} is now {_article(role)} {role}; signed out")
+    return _done(request, f"{name} is now {_article(role)} {role}; signed out")
 
 
 def _named(session: Session, name: str) -> User:
@@ -273,8 +296,15 @@ def _article(role: str) -> str:
 
 
 def _write(srv: Server, entry: AuditEntry, now: float, change: Callable[[Session], None]) -> None:
-    """The change and its audit record, in one transaction (a tampered row is refused)."""
+    """The change and its audit record, in one transaction; a change refused (a tampered row,
+    the last admin, ...) leaves no record of it done but one of it refused, with why."""
     try:
         audit.write(srv.store, srv.live.name, [entry], now, also=change)
-    except TamperedUser as exc:
-        raise HTTPException(409, str(exc)) from None
+    except (HTTPException, TamperedUser) as exc:
+        why = str(exc.detail) if isinstance(exc, HTTPException) else str(exc)
+        detail = {**entry.detail, "why": why}
+        refused = AuditEntry(entry.kind, f"{entry.subject} refused", entry.user, "", detail)
+        audit.write(srv.store, srv.live.name, [refused], now)
+        if isinstance(exc, HTTPException):
+            raise
+        raise HTTPException(409, why) from None
