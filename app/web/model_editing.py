@@ -95,7 +95,17 @@ def stored(srv: Server, number: int) -> ModelVersion:
 
 
 async def activate(srv: Server, number: int, user: str) -> None:
-    """Make version `number` the running model (409 when the station is busy)."""
+    """Make version `number` the running model (409 when the station is busy, or while
+    another activation is under way: one at a time, however many engineers press it)."""
+    if not srv.activation.acquire(blocking=False):
+        raise HTTPException(409, "another activation is under way; try again when it is done")
+    try:
+        await _activate(srv, number, user)
+    finally:
+        srv.activation.release()
+
+
+async def _activate(srv: Server, number: int, user: str) -> None:
     row = stored(srv, number)
     if row.id == srv.live.model.version_id:
         raise HTTPException(409, f"version {number} is already active")
@@ -109,5 +119,5 @@ async def activate(srv: Server, number: int, user: str) -> None:
         gc.unfreeze()
         gc.collect()  # one long collection, while the station is idle or in restart mode
         gc.freeze()
-    if srv.experiments:
+    if srv.live.simulated:  # those that fit the new model (none may, and all may again)
         srv.experiments = experiments(model.station)

@@ -55,6 +55,8 @@ class Server:
         default_factory=lambda: threading.BoundedSemaphore(PASSWORD_CHECKS)
     )
     tampered: set[str] = field(default_factory=set)  # users whose tampered row was said
+    # held by the one model activation under way (each builds a runner and a planning worker)
+    activation: threading.Lock = field(default_factory=threading.Lock)
 
     def start(self) -> None:
         """The station loop and the audit checkpoints (the web app is served by the caller)."""

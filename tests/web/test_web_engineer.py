@@ -403,3 +403,55 @@ def test_in_restart_mode_only_operations_a_reset_changes_get_a_reset_button(
     assert len(blocks) == len(live.view.model.station.operations)
     post(client, token, "/station/restart/leave")
     post(client, token, "/station/intentions/cancel", name="assemble_engine")
+
+
+def test_one_activation_at_a_time_however_many_engineers_press_it(
+    station: RunningStation,
+) -> None:
+    """Three engineers activate the same new version at once: one activation runs (each
+    builds a runner and a planning worker), the others are told another is under way or
+    that the version is active already."""
+    import threading
+
+    text = MODEL.read_text(encoding="utf-8")
+    old = "description: the whole engine, every tool hung back and the robots parked"
+    client, token = signed_in(station)
+    saved = post(client, token, "/model/save", text=text.replace(old, old + " again"), note="x")
+    assert saved.status_code == 200
+    engineers = [signed_in(station) for _ in range(3)]
+    ready = threading.Barrier(3)
+    answers: list[Any] = [None] * 3
+
+    def press(k: int) -> None:
+        other, other_token = engineers[k]
+        ready.wait()
+        answers[k] = post(other, other_token, "/model/activate", version=2)
+
+    threads = [threading.Thread(target=press, args=(k,)) for k in range(3)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join(120)
+    statuses = sorted(a.status_code for a in answers)
+    assert statuses == [200, 409, 409], [a.text[:200] for a in answers]
+    refusals = " ".join(a.text for a in answers if a.status_code == 409)
+    assert "another activation is under way" in refusals or "already active" in refusals
+    assert station.live.view.model.number == 2
+    assert len([r for r in audit(station, "model", "engineer") if r.subject == "activated"]) == 1
+
+
+def test_the_experiments_come_back_with_a_model_they_fit(station: RunningStation) -> None:
+    """A model that fits no experiment leaves the simulation panel empty; activating the
+    demo model again brings E1-E9 back."""
+    from tests.support.paths import REPOSITORY
+
+    mini = (REPOSITORY / "tests" / "support" / "models" / "mini_station.yaml").read_text()
+    client, token = signed_in(station)
+    server = station.built.server
+    assert len(server.experiments) == 9
+    assert post(client, token, "/model/save", text=mini, note="mini").status_code == 200
+    assert post(client, token, "/model/activate", version=2).status_code == 200
+    assert server.experiments == {}
+    assert post(client, token, "/model/activate", version=1).status_code == 200
+    assert len(server.experiments) == 9
+    assert "e6_r2_disconnects_above_engine" in server.experiments
