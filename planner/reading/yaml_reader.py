@@ -11,7 +11,7 @@ from __future__ import annotations
 import difflib
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
-from typing import TypeVar
+from typing import Any, TypeVar
 
 import yaml
 
@@ -38,6 +38,9 @@ Fields = dict[str, tuple[yaml.Node, yaml.Node]]  # a mapping's keys -> (key node
 MAX_YAML_NESTING = 100
 """Lists and mappings nested deeper are refused: a model needs about 8 levels, and libyaml's
 composer recurses in C, so that `[[[[...` 100,000 deep kills the process (editor included)."""
+MAX_ALIAS_NODES = 100_000
+"""Nodes that aliases may add to a model beyond those written out in its text: ten anchors
+of ten aliases each stand for 10^10 nodes, which reading would walk one by one."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -134,22 +137,44 @@ class Reader:
             ) from None
 
     def check_nesting(self) -> None:
-        """Refuse nesting beyond `MAX_YAML_NESTING` from the parser's events (a flat stream,
-        no recursion), before the composer sees it; other YAML errors are left to it."""
-        level = 0
+        """Refuse nesting beyond `MAX_YAML_NESTING`, and aliases that would make the model
+        more than `MAX_ALIAS_NODES` nodes larger than its text (a few hundred bytes of
+        anchors naming anchors grow exponentially when read), from the parser's events (a
+        flat stream, no recursion), before the composer sees it; other YAML errors are left
+        to it."""
+        open_: list[list[Any]] = []  # per open collection: its anchor, its nodes so far
+        sizes: dict[str, int] = {}  # anchor -> how many nodes it stands for
+        extra = 0
         try:
             for event in yaml.parse(self.text, Loader=_Loader):
                 if isinstance(event, yaml.CollectionStartEvent):
-                    level += 1
-                    if level > MAX_YAML_NESTING:
-                        mark = event.start_mark
-                        where = SourceLocation(self.file, mark.line + 1, mark.column + 1)
+                    open_.append([event.anchor, 1])
+                    if len(open_) > MAX_YAML_NESTING:
                         message = f"lists and mappings nested more than {MAX_YAML_NESTING} deep"
-                        raise ModelError([Diagnostic(where, f"YAML: {message}")])
-                elif isinstance(event, yaml.CollectionEndEvent):
-                    level -= 1
+                        self._refuse(event, message)
+                    continue
+                if isinstance(event, yaml.CollectionEndEvent):
+                    anchor, nodes = open_.pop()
+                elif isinstance(event, yaml.AliasEvent):
+                    anchor, nodes = None, sizes.get(event.anchor or "", 1)
+                    extra += nodes - 1
+                    if extra > MAX_ALIAS_NODES:
+                        self._refuse(event, f"aliases repeat more than {MAX_ALIAS_NODES} nodes")
+                elif isinstance(event, yaml.ScalarEvent):
+                    anchor, nodes = event.anchor, 1
+                else:
+                    continue
+                if anchor:
+                    sizes[anchor] = nodes
+                if open_:
+                    open_[-1][1] += nodes
         except yaml.YAMLError:
             return
+
+    def _refuse(self, event: yaml.Event, message: str) -> None:
+        mark = event.start_mark
+        where = SourceLocation(self.file, mark.line + 1, mark.column + 1)
+        raise ModelError([Diagnostic(where, f"YAML: {message}")])
 
     def mapping(
         self, node: yaml.Node, what: str, allowed: Iterable[str], required: Iterable[str] = ()

@@ -35,7 +35,7 @@ from planner.model.flat import Model
 from planner.model.semantics import compile_expr
 from planner.planning.bmc import _Encoding
 from planner.planning.symmetry import Symmetry
-from planner.reading import load_station
+from planner.reading import load_model, load_station
 from planner.reading.yaml_reader import ModelError, scope_for
 from planner.runner import LeaveRestart
 from tests.browser.test_browser_operator import screenshot, sign_in
@@ -194,6 +194,26 @@ def walk_everywhere(model: Model, expr: Any) -> None:
             sym.expr(expr)
             encoding.lit(expr, 0)
             assert identity.expr(expr) == expr
+
+
+def test_aliases_that_multiply_a_model_are_refused_at_their_place() -> None:
+    """Anchors naming anchors: a few hundred bytes that stand for millions of nodes are
+    refused before the model is composed, at the alias that passes the bound; a model that
+    uses aliases as people do loads."""
+    anchors = "defs:\n  - &a0 {name: x, domain: bool}\n" + "".join(
+        f"  - &a{k} [" + ", ".join([f"*a{k - 1}"] * 10) + "]\n" for k in range(1, 7)
+    )
+    bomb = anchors + "variables: [*a6]\ntransitions: []\n"
+    assert len(bomb) < 500
+    with pytest.raises(ModelError) as caught:
+        load_model(bomb, "bomb.yaml")
+    [message] = [str(d) for d in caught.value.diagnostics]
+    assert message.startswith("bomb.yaml:7:10: YAML: aliases repeat more than")
+    shared = "variables:\n  - &flag {name: x, domain: bool}\ntransitions:\n"
+    shared += "  - {name: t, guard: '!x', actions: &set ['x := true']}\n"
+    shared += "  - {name: u, guard: 'x', actions: *set}\n"
+    model = load_model(shared, "shared.yaml")
+    assert [t.name for t in model.transitions] == ["t", "u"]
 
 
 @pytest.mark.parametrize("shape", SHAPES)
