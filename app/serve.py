@@ -21,7 +21,7 @@ from app.pages.cards import station_activity, task_cards
 from app.people.auth import seed_demo_users
 from app.people.sessions import ApiTokens
 from app.people.throttle import SignInThrottle
-from app.station import supervisor_cache
+from app.station import supervisor_cache, tampering
 from app.station.experiments import experiments
 from app.station.live import LiveStation
 from app.station.running import DeviceSetup, PlanningSetup, simulated_devices
@@ -31,7 +31,7 @@ from app.store.audit import AuditEntry, AuditKind
 from app.store.checkpoints import Checkpointer
 from app.store.db import Store, open_store
 from app.store.keys import default_key_path
-from app.store.sealing import seal_store
+from app.store.sealing import check_before_start, seal_store
 from app.web.app import create_app
 from app.web.server import Server, parse_networks
 from hw.device_file.spec import DeviceFile
@@ -87,6 +87,9 @@ def build(
     text = model_path.read_text(encoding="utf-8")
     name = station_name or _station_name(text, model_path)
     station_keys = seal_store(store, keys or default_key_path(url), name, time.time())
+    check = check_before_start(store, name)
+    if check.steering:
+        raise tampering.refuse_start(store, name, check, time.time())
     seeded = _seed_users(store, name) if seed_users else []
     model = _active_model(store, name, text, model_path.name, cache, say)
     say("restoring the station's last state")
@@ -95,6 +98,10 @@ def build(
     live = LiveStation(store, name, model, config=config, period=period, clock=clock,
                        planning=planning, devices=devices)  # fmt: skip
     _watch_the_task_page(live)
+    if check.findings:
+        live.running.notices[tampering.FOUND_KEY] = tampering.found_at_start(
+            store, name, check, time.time()
+        )  # before the loop starts: the alarm is there in its first round
     if live.simulated:
         say("loading the experiments E1-E9")
     server = Server(

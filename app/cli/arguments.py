@@ -140,6 +140,20 @@ def parser() -> argparse.ArgumentParser:
     verify.add_argument(
         "--keys", help="the station's key file (default: beside a SQLite file, or $SP_KEY_FILE)"
     )
+    store = commands.add_parser("store", help="look after the station's store")
+    store_commands = store.add_subparsers(dest="store_command", required=True)
+    accept = store_commands.add_parser(
+        "accept",
+        help="seal again, as they are, the rows `sp audit verify` found changed outside the "
+        "station (after a restore from a backup, or a repair), so that it starts; audited",
+    )
+    accept.add_argument("--db", default="sqlite:///station.db", help="database URL")
+    accept.add_argument(
+        "--keys", help="the station's key file (default: beside a SQLite file, or $SP_KEY_FILE)"
+    )
+    accept.add_argument("--station", help="the station's name (default: the store's only one)")
+    accept.add_argument("--by", required=True, help="who checked the rows and accepts them")
+    accept.add_argument("--why", required=True, help="why they may be trusted, for the audit")
     return parser
 
 

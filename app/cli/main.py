@@ -49,6 +49,8 @@ def main(argv: Sequence[str] | None = None, *, observer: QueryObserver | None = 
             return cli_station.emulate(args)
         if args.command == "audit":
             return cli_station.audit(args)
+        if args.command == "store":
+            return cli_station.store(args)
         return _check(args)
     except ModelError as exc:
         for diagnostic in exc.diagnostics:

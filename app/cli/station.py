@@ -10,6 +10,7 @@ import gc
 import json
 import logging
 import socket
+import sys
 import threading
 import time
 from collections.abc import Callable, Iterable
@@ -40,6 +41,7 @@ def serve(args: argparse.Namespace) -> int:
         raise UsageError("--period must be more than 0")
     if not 0 < args.speed <= 100:
         raise UsageError("--speed must be more than 0 and at most 100")
+    from app.station.tampering import StoreTampered
     from app.store.keys import KeyFileError
     from app.web.server import parse_networks
 
@@ -58,6 +60,9 @@ def serve(args: argparse.Namespace) -> int:
             built = _build(args, model, devices, say)
         except KeyFileError as exc:
             raise UsageError(str(exc)) from None
+        except StoreTampered as exc:
+            print(str(exc), file=sys.stderr)
+            return 3
         if built.seeded:
             print("demo users (first-login passwords; each must be changed on first sign-in):")
             for name, role, password in built.seeded:
@@ -274,6 +279,50 @@ def audit(args: argparse.Namespace) -> int:
     for line in describe(report, keys.path if keys is not None else None):
         print(line)
     return 0 if report.intact else 1
+
+
+def store(args: argparse.Namespace) -> int:
+    """`sp store accept`: exit 0 when accepted (or nothing to accept), 2 when it cannot be."""
+    from sqlalchemy import select
+    from sqlalchemy.exc import SQLAlchemyError
+
+    from app.store.acceptance import accept
+    from app.store.db import open_store
+    from app.store.keys import KeyFileError, default_key_path, read_keys
+    from app.store.tables import StationRecord
+
+    try:
+        path = Path(args.keys) if args.keys else default_key_path(args.db)
+        if path is None:
+            raise KeyFileError("an in-memory store has no key file")
+        keys = read_keys(path)
+        opened = open_store(args.db)
+        opened.keys = keys
+        try:
+            station = args.station
+            if not station:
+                with opened.sessions() as session:
+                    names = list(session.scalars(select(StationRecord.name)))
+                if len(names) != 1:
+                    raise ValueError(f"the store holds {len(names)} stations: name one (--station)")
+                station = names[0]
+            accepted = accept(opened, station, args.by, args.why)
+        finally:
+            opened.close()
+    except KeyFileError as exc:
+        print(f"cannot accept: {exc}")
+        return 2
+    except (SQLAlchemyError, OSError, ValueError, TypeError) as exc:
+        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        print(f"cannot accept: {reason}")
+        return 2
+    if not accepted.problems:
+        print("nothing to accept: every sealed row is as the station wrote it")
+        return 0
+    for problem in accepted.problems:
+        print(f"accepted: {problem}")
+    print(f"{len(accepted.problems)} row(s) sealed again as they are, by {args.by}; audited")
+    return 0
 
 
 def emulate(args: argparse.Namespace) -> int:

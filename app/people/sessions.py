@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from enum import StrEnum
 
 from itsdangerous import BadSignature, SignatureExpired, URLSafeTimedSerializer
-from sqlalchemy import delete, or_, update
+from sqlalchemy import delete, or_, select
 from sqlalchemy.orm import Session
 
 from app.store.tables import User, UserSession
@@ -82,14 +82,16 @@ def revoke(session: Session, secret: str, why: str, now: float) -> None:
 
 
 def revoke_all(session: Session, user_id: int, why: str, now: float) -> int:
-    """End every live session and token of a user; returns how many."""
-    result = session.execute(
-        update(UserSession)
+    """End every live session and token of a user; returns how many.  (Row by row, not one
+    UPDATE: each row is sealed again as it is written, app.store.row_seals.)"""
+    rows = session.scalars(
+        select(UserSession)
         .where(UserSession.user_id == user_id, UserSession.revoked_at.is_(None))
         .where(UserSession.expires_at > now)
-        .values(revoked_at=now, revoked_why=why)
-    )
-    return int(getattr(result, "rowcount", 0) or 0)
+    ).all()
+    for row in rows:
+        row.revoked_at, row.revoked_why = now, why
+    return len(rows)
 
 
 class ApiTokens:

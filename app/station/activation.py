@@ -9,6 +9,7 @@ in restart mode (`busy`): a model is not changed under a running operation.
 
 from __future__ import annotations
 
+import hashlib
 import threading
 from dataclasses import dataclass
 
@@ -72,5 +73,9 @@ def activate(running: Running, round_: Round, prepared: Prepared, user: str) -> 
         devices.restore(old_devices.dump(round_.now), round_.now)
         old_devices.close()
     running.cycle = StationCycle(prepared.runner, devices, state)
-    detail = {"version": prepared.model.number, "previous": old.number}
+    detail = {
+        "version": prepared.model.number,
+        "previous": old.number,
+        "sha256": hashlib.sha256(prepared.model.text.encode()).hexdigest(),  # what ran
+    }
     round_.record(AuditEntry(AuditKind.MODEL, "activated", user, "", detail))

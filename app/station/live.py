@@ -38,6 +38,7 @@ from app.station.requests import (
     ConfirmCard,
     InjectFault,
     PlayExperiment,
+    ReportTampering,
     Request,
     Shelve,
     StationError,
@@ -197,6 +198,11 @@ class LiveStation:
 
     def unshelve(self, key: str, user: str) -> Future[AlarmChange]:
         return self.submit(Unshelve(user, key))
+
+    def report_tampering(self, rows: str, what: str, user: str = "") -> Future[None]:
+        """A high alarm from the next round on: a row of the store was changed outside the
+        station (`rows` names it, one alarm each)."""
+        return self.submit(ReportTampering(rows, what, user))
 
     def prepare(self, model: ActiveModel) -> activation.Prepared:
         """What running `model` needs that takes time, made on the caller's thread."""

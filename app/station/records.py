@@ -76,7 +76,12 @@ def commit(
                 elif row.data != data:
                     row.data, row.updated_at = data, wall
 
-    audit.write(store, station, round_.entries, wall, also=save)
+    def follows(session: Session, head: tuple[int, str]) -> None:
+        record = session.get(StationRecord, station)
+        if record is not None:  # the snapshot names the record it follows (app.store.integrity)
+            record.audit_id, record.audit_hash = head
+
+    audit.write(store, station, round_.entries, wall, also=save, after=follows)
 
 
 @dataclass(frozen=True)

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from typing import Protocol, TypeVar
 
 from app.station import activation, experiments
-from app.station.alarms import AlarmBook, AlarmChange, AlarmError
+from app.station.alarms import AlarmBook, AlarmChange, AlarmError, Condition, Priority
 from app.station.cycle import CycleResult
 from app.station.rounds import Answer, Round
 from app.station.running import Running
@@ -217,3 +217,18 @@ def _alarm(running: Running, round_: Round, change: Callable[[AlarmBook], AlarmC
         raise StationError(str(exc)) from None
     round_.alarm_changed(done)
     return settled(done)
+
+
+@dataclass(frozen=True)
+class ReportTampering:
+    """A check of the station's own found a row of its store changed outside it (a model
+    version about to be activated, rows at start): a high alarm from this round on."""
+
+    rows: str  # which rows, for the alarm's key: one alarm per thing found
+    what: str  # in plain words: which rows, and what the station refused
+    user: str = ""
+
+    def apply(self, running: Running, round_: Round) -> Answer:
+        key = f"store:{self.rows}"
+        running.notices[key] = Condition(key, Priority.HIGH, self.what)
+        return settled(None)

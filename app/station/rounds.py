@@ -108,6 +108,7 @@ def record_events(running: Running, round_: Round) -> None:
 
 def keep_alarms(running: Running, round_: Round) -> None:
     found = conditions(running.runner, running.state, running.model.words)
+    found.update(running.notices)
     for change in running.book.update(found, round_.wall):
         round_.alarm_changed(change)
     why = round_.boundary()

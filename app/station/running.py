@@ -14,7 +14,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 from app.history.durations import Durations
-from app.station.alarms import AlarmBook
+from app.station.alarms import AlarmBook, Condition
 from app.station.cycle import StationCycle
 from app.station.planning_worker import PlanningWorker
 from app.station.runs import RunTracker
@@ -95,6 +95,9 @@ class Running:
     # people's actions for the next round's tick: an experiment's intentions, started once
     # the devices had a round to report from their new start
     next_actions: list[Action] = field(default_factory=list)
+    # alarm conditions the station's own checks found (a row of its store changed outside
+    # it): they hold for the rest of the process, whatever the runner's state
+    notices: dict[str, Condition] = field(default_factory=dict)
 
     @property
     def runner(self) -> Runner:

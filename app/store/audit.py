@@ -137,23 +137,34 @@ def append(
     return records
 
 
+def head(session: Session) -> tuple[int, str]:
+    last = session.execute(
+        select(AuditRecord.id, AuditRecord.hash).order_by(AuditRecord.id.desc()).limit(1)
+    ).first()
+    return (int(last[0]), str(last[1])) if last is not None else (0, "")
+
+
 def write(
     store: Store,
     station: str,
     entries: Sequence[AuditEntry] | Callable[[T], Sequence[AuditEntry]],
     now: float,
     also: Callable[[Session], T] | None = None,
+    after: Callable[[Session, tuple[int, str]], None] | None = None,
 ) -> T | None:
     """One transaction: `also(session)` (the change the entries record, if any), then the
-    entries (or what `entries` makes of also's result), committed together.  An exception
+    entries (or what `entries` makes of also's result), then `after(session, head)` with the
+    log's newest (id, hash) as it will be committed, all committed together.  An exception
     from `also` rolls both back and propagates."""
     for attempt in range(ATTEMPTS):
         try:
             with store.audit_lock, store.sessions.begin() as session:
                 result = also(session) if also is not None else None
                 made = entries(result) if callable(entries) else entries  # type: ignore[arg-type]
-                if made:
-                    append(session, station, made, now, store.keys)
+                appended = append(session, station, made, now, store.keys) if made else []
+                if after is not None:
+                    newest = appended[-1] if appended else None
+                    after(session, (newest.id, newest.hash) if newest else head(session))
             return result
         except IntegrityError:
             store.audit_conflicts += 1

@@ -1,11 +1,15 @@
-"""Signed checkpoints of the audit log's head, written outside the database.
+"""Signed checkpoints of the audit log's head and of the sealed rows' counters, written
+outside the database.
 
 Seals show a record that was changed or forged, but not the newest records deleted all
-together: what remains is a valid, shorter chain.  So the station writes, every `period`
-seconds while the log grows, a checkpoint (time, count, newest hash), signed with its key,
-as a line of the checkpoints file beside the key file and into its log.  `sp audit verify`
-then finds a log shorter than a checkpoint saw, or one whose record at a checkpoint's count
-no longer has the hash the checkpoint saw (history rewritten up to there).
+together: what remains is a valid, shorter chain.  Nor do they show an older sealed copy of a
+row written back.  So the station writes, every `period` seconds while the log or the sealed
+rows change (at once after a change to people's rights, and when it stops), a checkpoint
+(time, count, newest hash, and each sealed row's counter), signed with its key, as a line of
+the checkpoints file beside the key file and into its log.  `sp audit verify` then finds a
+log shorter than a checkpoint saw, one whose record at a checkpoint's count no longer has the
+hash the checkpoint saw (history rewritten up to there), and rows older than it saw them;
+the station, when it starts, does the same for the rows (app.store.integrity).
 """
 
 from __future__ import annotations
@@ -17,7 +21,7 @@ import os
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from sqlalchemy import select
@@ -29,6 +33,7 @@ from app.store.tables import AuditRecord
 log = logging.getLogger(__name__)
 LABEL = "audit checkpoints"
 PERIOD = 60.0
+URGENT_POLL = 0.5  # how often the thread looks for stopping while it waits for a change
 
 
 @dataclass(frozen=True)
@@ -38,14 +43,16 @@ class Checkpoint:
     count: int  # records in the log (ids run 1..count)
     head: str  # the hash of record `count`
     mac: str = ""
+    rows: tuple[tuple[str, int], ...] = ()  # each sealed row's counter (app.store.row_seals)
 
     def text(self) -> str:
-        return json.dumps([self.time, self.station, self.count, self.head], separators=(",", ":"))
+        fields: list[object] = [self.time, self.station, self.count, self.head]
+        if self.rows:  # checkpoints from before sealed rows had none
+            fields.append([list(row) for row in self.rows])
+        return json.dumps(fields, separators=(",", ":"))
 
     def signed(self, keys: StationKeys) -> Checkpoint:
-        return Checkpoint(
-            self.time, self.station, self.count, self.head, keys.mac(LABEL, self.text())
-        )
+        return replace(self, mac=keys.mac(LABEL, self.text()))
 
     def valid(self, keys: StationKeys) -> bool:
         return hmac.compare_digest(self.mac, keys.mac(LABEL, self.text()))
@@ -62,7 +69,16 @@ def head_of(store: Store) -> tuple[int, str]:
 
 def append_line(path: Path, checkpoint: Checkpoint) -> None:
     """One JSON line, flushed to disk before returning."""
-    line = json.dumps(asdict(checkpoint), separators=(",", ":")) + "\n"
+    data: dict[str, object] = {
+        "time": checkpoint.time,
+        "station": checkpoint.station,
+        "count": checkpoint.count,
+        "head": checkpoint.head,
+        "mac": checkpoint.mac,
+    }
+    if checkpoint.rows:
+        data["rows"] = dict(checkpoint.rows)
+    line = json.dumps(data, separators=(",", ":")) + "\n"
     descriptor = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o600)
     try:
         os.write(descriptor, line.encode())
@@ -85,17 +101,31 @@ def read_lines(path: Path) -> tuple[list[tuple[int, Checkpoint]], list[str]]:
                     int(data["count"]),
                     str(data["head"]),
                     str(data["mac"]),
+                    tuple((str(k), int(v)) for k, v in data.get("rows", {}).items()),
                 )
-            except (ValueError, KeyError, TypeError):
+            except (ValueError, KeyError, TypeError, AttributeError):
                 damaged.append(f"line {number} of the checkpoints file is not a checkpoint")
                 continue
             found.append((number, checkpoint))
     return found, damaged
 
 
+def newest_rows(keys: StationKeys, station: str) -> dict[str, int]:
+    """The sealed rows' counters in the newest valid checkpoint of `station` ({} if none)."""
+    path = keys.checkpoints
+    if path is None or not path.exists():
+        return {}
+    found, _damaged = read_lines(path)
+    for _line, checkpoint in reversed(found):
+        if checkpoint.station == station and checkpoint.valid(keys):
+            return dict(checkpoint.rows)
+    return {}
+
+
 class Checkpointer:
-    """Writes a checkpoint when the log has grown, at most every `period` seconds, in a
-    thread of its own (nothing of it runs in the station loop)."""
+    """Writes a checkpoint when the log or the sealed rows changed, at most every `period`
+    seconds (at once after an urgent change), in a thread of its own (nothing of it runs in
+    the station loop)."""
 
     def __init__(
         self,
@@ -109,18 +139,22 @@ class Checkpointer:
             raise ValueError("checkpoints need the store's keys from a key file (seal_store)")
         self.store, self.keys, self.path = store, store.keys, store.keys.checkpoints
         self.station, self.period, self.clock = station, period, clock
-        self.written = (-1, "")
+        self.written: tuple[int, str, int] = (-1, "", -1)
         self.stopping = threading.Event()
         self.thread: threading.Thread | None = None
 
     def checkpoint(self) -> Checkpoint | None:
-        """A checkpoint of the head now, unless the last one saw the same head."""
+        """A checkpoint of the head and the rows now, unless the last one saw the same."""
+        freshness = self.store.freshness
+        generation, rows = freshness.snapshot() if freshness is not None else (0, {})
         count, head = head_of(self.store)
-        if (count, head) == self.written:
+        if (count, head, generation) == self.written:
             return None
-        checkpoint = Checkpoint(self.clock(), self.station, count, head).signed(self.keys)
+        seen = tuple(sorted(rows.items()))
+        checkpoint = Checkpoint(self.clock(), self.station, count, head, rows=seen)
+        checkpoint = checkpoint.signed(self.keys)
         append_line(self.path, checkpoint)
-        self.written = (count, head)
+        self.written = (count, head, generation)
         log.info(
             "audit checkpoint: %d records, newest hash %s, signed %s", count, head, checkpoint.mac
         )
@@ -132,7 +166,17 @@ class Checkpointer:
         self.thread.start()
 
     def _run(self) -> None:
-        while not self.stopping.wait(self.period):
+        freshness = self.store.freshness
+        urgent = freshness.urgent if freshness is not None else threading.Event()
+        next_at = time.monotonic() + self.period
+        while not self.stopping.is_set():
+            urgent.wait(min(URGENT_POLL, max(0.0, next_at - time.monotonic())))
+            now = time.monotonic()
+            if self.stopping.is_set() or (now < next_at and not urgent.is_set()):
+                continue
+            urgent.clear()
+            if now >= next_at:
+                next_at = now + self.period
             try:
                 self.checkpoint()
             except Exception:  # a full disk must not end the checkpoints for good

@@ -17,6 +17,7 @@ from sqlalchemy.orm import Session, sessionmaker
 
 if TYPE_CHECKING:
     from app.store.keys import StationKeys
+    from app.store.row_seals import Freshness
 
 MIGRATIONS = Path(__file__).resolve().parents[2] / "migrations"
 
@@ -30,14 +31,17 @@ class Store:
     """The engine and a session factory; `upgrade()` brings the schema to the newest version.
 
     `keys`: the station's keys once `app.store.sealing.seal_store` has opened them (audit
-    records and user rows are sealed with them); `audit_lock`: held by the one audit writer
-    of the process (`app.store.audit.write`) from choosing the next id until the commit.
+    records and the rows that steer the station are sealed with them); `freshness`: the
+    counters the station last wrote to those rows (app.store.row_seals); `audit_lock`: held
+    by the one audit writer of the process (`app.store.audit.write`) from choosing the next
+    id until the commit.
     """
 
     url: str
     engine: Engine
     sessions: sessionmaker[Session]
     keys: StationKeys | None = None
+    freshness: Freshness | None = None
     audit_lock: threading.Lock = field(default_factory=threading.Lock)
     audit_conflicts: int = 0  # commits lost to another writer (of another process) and retried
 

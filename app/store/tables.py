@@ -28,6 +28,7 @@ class User(Base):
     # HMAC of the row under the station's key (app.store.seals): a row changed outside the
     # station no longer matches and is refused
     mac: Mapped[str] = mapped_column(String(64), default="")
+    seq: Mapped[int] = mapped_column(Integer, default=0)  # bound into the seal: freshness
 
 
 class UserSession(Base):
@@ -44,6 +45,9 @@ class UserSession(Base):
     revoked_at: Mapped[float | None] = mapped_column(Float, default=None)
     revoked_why: Mapped[str] = mapped_column(String(64), default="")
     address: Mapped[str] = mapped_column(String(64), default="")
+    # the row's version counter and seal under the station's key (app.store.row_seals)
+    seq: Mapped[int] = mapped_column(Integer, default=0)
+    mac: Mapped[str] = mapped_column(String(64), default="")
 
     __table_args__ = (Index("ix_user_sessions_user", "user_id"),)
 
@@ -61,6 +65,9 @@ class ModelVersion(Base):
     author: Mapped[str] = mapped_column(String(64))
     note: Mapped[str] = mapped_column(Text, default="")
     created_at: Mapped[float] = mapped_column(Float)
+    # the row's version counter and seal under the station's key (app.store.row_seals)
+    seq: Mapped[int] = mapped_column(Integer, default=0)
+    mac: Mapped[str] = mapped_column(String(64), default="")
 
     __table_args__ = (Index("ix_model_versions_station_number", "station", "number", unique=True),)
 
@@ -75,6 +82,12 @@ class StationRecord(Base):
     snapshot: Mapped[str] = mapped_column(Text, default="")  # planner.runner.snapshot.dump as JSON
     world: Mapped[str] = mapped_column(Text, default="")  # the simulated devices' state, if any
     updated_at: Mapped[float] = mapped_column(Float)
+    # the audit record the snapshot follows: the newest its round wrote (or found)
+    audit_id: Mapped[int] = mapped_column(Integer, default=0)
+    audit_hash: Mapped[str] = mapped_column(String(64), default="")
+    # the row's version counter and seal under the station's key (app.store.row_seals)
+    seq: Mapped[int] = mapped_column(Integer, default=0)
+    mac: Mapped[str] = mapped_column(String(64), default="")
 
 
 class AlarmRecord(Base):
@@ -87,6 +100,9 @@ class AlarmRecord(Base):
     key: Mapped[str] = mapped_column(String(200), primary_key=True)
     data: Mapped[str] = mapped_column(Text)  # the Alarm's fields as JSON
     updated_at: Mapped[float] = mapped_column(Float)
+    # the row's version counter and seal under the station's key (app.store.row_seals)
+    seq: Mapped[int] = mapped_column(Integer, default=0)
+    mac: Mapped[str] = mapped_column(String(64), default="")
 
 
 class AuditRecord(Base):
@@ -124,3 +140,6 @@ class Setting(Base):
 
     key: Mapped[str] = mapped_column(String(64), primary_key=True)
     value: Mapped[str] = mapped_column(Text)
+    # the row's version counter and seal under the station's key (app.store.row_seals)
+    seq: Mapped[int] = mapped_column(Integer, default=0)
+    mac: Mapped[str] = mapped_column(String(64), default="")

@@ -8,17 +8,21 @@ Checked, with the station's key file and its checkpoints:
   recomputed from some record on, does not match without the key;
 - the signed checkpoints: a log shorter than a checkpoint saw (the newest records, or all of
   them, deleted), or a record at a checkpoint's count whose hash changed (history rewritten);
-- the users table: every row's seal (a role, password or disabled flag changed outside the
-  station), and its names against the users the log recorded as added (a row inserted or
-  deleted outside the station);
+- every sealed row (users, sessions and API tokens, model versions, each station's state with
+  its snapshot, alarms, settings; app.store.row_seals): its seal (changed outside the
+  station), its counter against the newest signed checkpoint (an older sealed copy written
+  back), a row the station never deletes still there, a model version's text against its
+  hash, and each station's state against the audit record it follows;
+- the users' names against the users the log recorded as added (a row inserted or deleted
+  outside the station);
 - values of the wrong type (binary data where text or numbers belong).
 
-Not detectable: records deleted after the newest checkpoint (at most one checkpoint period,
-60 s, of history, if the attacker also stops the station from writing the next one), a
-database and checkpoints file both put back to an older copy, anything done with the key
-file in hand (the running station, or whoever can read the key), and tables other than the
-audit log and the users.  Keep the key file and the checkpoints where the database's writers
-cannot reach them.
+Not detectable: records deleted, or rows put back to an older sealed copy, after the newest
+checkpoint (a change to people's rights is checkpointed at once, the station's state and
+alarms every period, 60 s, and when the station stops), a database and checkpoints file both
+put back to an older copy, and anything done with the key file in hand (the running station,
+or whoever can read the key).  Keep the key file and the checkpoints where the database's
+writers cannot reach them.
 """
 
 from __future__ import annotations
@@ -32,7 +36,7 @@ from typing import Any
 
 from sqlalchemy import text
 
-from app.store import checkpoints, seals
+from app.store import checkpoints, integrity, seals
 from app.store.audit import GENESIS, AuditKind, record_hash
 from app.store.db import Store
 from app.store.keys import StationKeys
@@ -40,9 +44,6 @@ from app.store.keys import StationKeys
 AUDIT_COLUMNS = (
     "id", "time", "station", "user", "kind", "subject", "resource", "detail", "previous", "hash",
     "mac",
-)  # fmt: skip
-USER_COLUMNS = (
-    "id", "name", "role", "password_hash", "must_change_password", "disabled", "created_at", "mac",
 )  # fmt: skip
 TEXT = ("station", "user", "kind", "subject", "resource", "detail", "previous", "hash", "mac")
 
@@ -59,6 +60,7 @@ class Report:
     checkpoints: int = 0
     checked_up_to: int = 0  # records covered by the newest valid checkpoint
     users: int = 0
+    rows: int = 0  # sealed rows checked (users, sessions, model versions, state, alarms...)
     problems: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
 
@@ -165,7 +167,8 @@ def verify(store: Store, keys: StationKeys | None) -> Report:
             report.notes.append("no seals: only the hash chain was checked")
         return report
     _check_checkpoints(keys, report, hashes)
-    _check_users(store, keys, report, added)
+    _check_users(store, report, added)
+    _check_rows(store, keys, report)
     return report
 
 
@@ -229,21 +232,13 @@ def _check_checkpoints(keys: StationKeys, report: Report, hashes: dict[int, str]
         report.checked_up_to = max(report.checked_up_to, checkpoint.count)
 
 
-def _check_users(store: Store, keys: StationKeys, report: Report, added: dict[str, int]) -> None:
-    from app.store.tables import User
-
+def _check_users(store: Store, report: Report, added: dict[str, int]) -> None:
+    """The users' names against the log: a row inserted or deleted outside the station."""
     seen = set()
-    for row in _rows(store, "users", USER_COLUMNS, "id"):
+    for row in _rows(store, "users", ("id", "name"), "id"):
         report.users += 1
         name = str(row["name"])
         seen.add(name)
-        wrong = _wrong_type(row, ("id", "created_at"), ("name", "role", "password_hash", "mac"))
-        user = User(**row)
-        if wrong or not seals.user_intact(keys, user):
-            report.problems.append(
-                f"user '{name}': the row does not match its seal (its role, password or "
-                "disabled state was changed outside the station)"
-            )
         if name not in added and report.sealed_from is not None:
             report.problems.append(
                 f"user '{name}' was never added by the station (no record of it in the log): "
@@ -255,6 +250,24 @@ def _check_users(store: Store, keys: StationKeys, report: Report, added: dict[st
                 f"user '{name}', added in record {record}, is no longer in the users table: "
                 "deleted outside the station"
             )
+
+
+def _check_rows(store: Store, keys: StationKeys, report: Report) -> None:
+    """Every sealed row (app.store.row_seals): its seal, its counter against the newest
+    checkpoint of each station, a row the station would not delete still there; each
+    station's state against the log."""
+    stations = [str(r["name"]) for r in _rows(store, "stations", ("name",), "name")]
+    known: dict[str, int] = {}
+    for station in stations:
+        for identity, seq in checkpoints.newest_rows(keys, station).items():
+            known[identity] = max(seq, known.get(identity, 0))
+    check = integrity.check_rows(store, keys, "", known, None)
+    report.rows = check.rows
+    report.problems.extend(f.problem for f in check.findings)
+    for station in stations:
+        why = integrity.check_snapshot(store, station)
+        if why:
+            report.problems.append(f"station {station}: {why}")
 
 
 def _when(seconds: float) -> str:
@@ -269,6 +282,7 @@ def describe(report: Report, keys_path: Path | None) -> list[str]:
     lines += [f"note: {n}" for n in report.notes]
     newest = f", the newest of {_when(report.newest)}" if report.newest is not None else ""
     summary = f"{report.records} records{newest}; {report.users} users"
+    summary += f"; {report.rows} sealed rows"
     if report.checkpoints:
         summary += (
             f"; {report.checkpoints} signed checkpoints, the newest covering "

@@ -27,10 +27,10 @@ from app.people.auth import Permission, allowed, new_csrf_token, same_token
 from app.people.sessions import SessionKind
 from app.station.live import LiveStation
 from app.station.view import StationView
-from app.store import audit, seals
+from app.store import audit, row_seals
 from app.store.audit import AuditEntry, AuditKind
 from app.store.db import Store
-from app.store.tables import User
+from app.store.tables import User, UserSession
 from app.web.audit_log import Criteria, filter_dependency
 from app.web.server import Network, Server
 
@@ -129,15 +129,29 @@ def trusted_user(srv: Server, user: User) -> bool:
     """An enabled user whose row the station wrote (a tampered one is said once, audited)."""
     if user.disabled:
         return False
-    keys = srv.store.keys
-    if keys is None or seals.user_intact(keys, user):
+    return _trusted_row(srv, user, f"user '{user.name}'", {"name": user.name}, AuditKind.USER)
+
+
+def trusted_session(srv: Server, found: user_sessions.Found) -> bool:
+    """A session (or token) row the station wrote, of a trusted user."""
+    row = found.row
+    what = f"a session of '{found.user.name}'"
+    detail = {"name": found.user.name, "session": row.id[:12]}
+    return _trusted_row(srv, row, what, detail, AuditKind.LOGIN) and trusted_user(srv, found.user)
+
+
+def _trusted_row(
+    srv: Server, row: User | UserSession, what: str, detail: dict[str, str], kind: AuditKind
+) -> bool:
+    """Sealed by the station and not older than it last wrote it (app.store.row_seals); a row
+    that is not is refused, said once and audited."""
+    keys, freshness = srv.store.keys, srv.store.freshness
+    if keys is None or freshness is None or row_seals.trusted(keys, freshness, row):
         return True
-    if user.name not in srv.tampered:
-        srv.tampered.add(user.name)
-        log.warning("user '%s': the row does not match its seal; refused", user.name)
-        entry = AuditEntry(
-            AuditKind.USER, "row changed outside the station", "", "", {"name": user.name}
-        )
+    if what not in srv.tampered:
+        srv.tampered.add(what)
+        log.warning("%s: the row does not match its seal or is older than written; refused", what)
+        entry = AuditEntry(kind, "row changed outside the station", "", "", detail)
         audit.write(srv.store, srv.live.name, [entry], srv.live.wall())
     return False
 
@@ -152,7 +166,7 @@ def browser_session(request: Request) -> user_sessions.Found | None:
         found = user_sessions.find(session, secret, uid, srv.live.wall())
         if found is not None:
             session.expunge_all()
-    if found is None or found.row.kind != SessionKind.BROWSER or not trusted_user(srv, found.user):
+    if found is None or found.row.kind != SessionKind.BROWSER or not trusted_session(srv, found):
         request.session.clear()
         return None
     return found
@@ -169,7 +183,7 @@ def current_caller(request: Request) -> Caller | None:
                 found = user_sessions.find(session, carried[1], carried[0], srv.live.wall())
                 if found is not None:
                     session.expunge_all()
-        if found is None or found.row.kind != SessionKind.API or not trusted_user(srv, found.user):
+        if found is None or found.row.kind != SessionKind.API or not trusted_session(srv, found):
             raise HTTPException(
                 401, "the bearer token is invalid, expired or revoked; get a new one"
             )

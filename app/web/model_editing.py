@@ -8,6 +8,7 @@ switch, which it refuses unless it is idle or in restart mode.
 
 from __future__ import annotations
 
+import contextlib
 import difflib
 import gc
 from dataclasses import dataclass
@@ -17,8 +18,9 @@ from sqlalchemy.orm import Session
 from starlette.concurrency import run_in_threadpool
 
 from app.station.experiments import experiments
+from app.station.requests import StationError
 from app.station.view import build_model
-from app.store import audit, versions
+from app.store import audit, integrity, versions
 from app.store.audit import AuditEntry, AuditKind
 from app.store.tables import ModelVersion
 from app.web.actions import answer
@@ -105,8 +107,22 @@ async def activate(srv: Server, number: int, user: str) -> None:
         srv.activation.release()
 
 
+async def _refuse_tampered(srv: Server, row: ModelVersion, why: str, user: str) -> None:
+    """A version changed outside the station never runs: audited, a high alarm, and 409."""
+    detail = {"version": row.number, "why": why}
+    entry = AuditEntry(AuditKind.MODEL, "activation refused: changed outside", user, "", detail)
+    await run_in_threadpool(audit.write, srv.store, srv.live.name, [entry], srv.live.wall())
+    what = f"{why}: its activation by {user} was refused. Check the audit log."
+    with contextlib.suppress(HTTPException, StationError):  # a stopped station: audited
+        await answer(srv.live.report_tampering(f"model-version:{row.number}", what, user))
+    raise HTTPException(409, f"{why}; it is not activated (the refusal is audited)")
+
+
 async def _activate(srv: Server, number: int, user: str) -> None:
     row = stored(srv, number)
+    refused = integrity.version_problem(srv.store, row)
+    if refused:
+        await _refuse_tampered(srv, row, refused, user)
     if row.id == srv.live.model.version_id:
         raise HTTPException(409, f"version {number} is already active")
     why = srv.live.busy()
