@@ -23,6 +23,11 @@ if "SP_CACHE_DIR" not in os.environ:
     import tempfile
 
     os.environ["SP_CACHE_DIR"] = tempfile.mkdtemp(prefix="sp-test-cache-")
+if "SP_CACHE_KEY_FILE" not in os.environ:  # its key too, out of the cache's folder
+    import tempfile
+
+    keys = tempfile.mkdtemp(prefix="sp-test-cache-key-")
+    os.environ["SP_CACHE_KEY_FILE"] = os.path.join(keys, "cache.key")
 
 
 @pytest.fixture

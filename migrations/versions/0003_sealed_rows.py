@@ -26,9 +26,7 @@ def upgrade() -> None:
     for table in SEALED:
         op.add_column(table, sa.Column("seq", sa.Integer, nullable=False, server_default="0"))
         op.add_column(table, sa.Column("mac", sa.String(64), nullable=False, server_default=""))
-    op.add_column(
-        "stations", sa.Column("audit_id", sa.Integer, nullable=False, server_default="0")
-    )
+    op.add_column("stations", sa.Column("audit_id", sa.Integer, nullable=False, server_default="0"))
     op.add_column(
         "stations", sa.Column("audit_hash", sa.String(64), nullable=False, server_default="")
     )

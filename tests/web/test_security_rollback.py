@@ -83,24 +83,30 @@ def test_a_demotion_undone_by_an_older_copy_is_refused_at_once(station: RunningS
     assert _api_role(station, "engineer") == 401  # neither engineer nor operator: refused
 
 
-def test_a_disable_undone_is_refused_after_a_restart(station: RunningStation) -> None:
-    station.login(station.client(), "engineer")
-    saved = _save(station.db, "engineer")
-    admin, token = _admin(station)
-    form = {"name": "engineer", "disabled": "1", "csrf_token": token}
-    assert admin.post("/users/disable", data=form).status_code in (200, 303)  # type: ignore[attr-defined]
-    station.stop()
-    _write_back(station.db, saved)
+def _restarted(station: RunningStation) -> RunningStation:
+    """The same database served again by a new station process."""
     built = build(MODEL, sqlite_url(station.db), cache=default_cache(), period=0.05)
-    again = RunningStation(built, station.db)
     built.server.start()
+    return RunningStation(built, station.db)
+
+
+def test_a_disable_undone_is_refused_after_a_restart(tmp_path: Path) -> None:
+    station = start_station(tmp_path)
+    try:
+        station.login(station.client(), "engineer")
+        saved = _save(station.db, "engineer")
+        admin, token = _admin(station)
+        form = {"name": "engineer", "disabled": "1", "csrf_token": token}
+        assert admin.post("/users/disable", data=form).status_code in (200, 303)  # type: ignore[attr-defined]
+    finally:
+        station.stop()
+    _write_back(station.db, saved)
+    again = _restarted(station)
     try:
         assert _sign_in(again, "engineer", new_password("engineer")) != 303
+        assert _sign_in(again, "operator", PASSWORDS["operator"]) == 303  # others still can
     finally:
         again.stop()
-    station.built.server.live.stop = lambda: None  # stopped already (the fixture's stop)
-    station.built.server.stop = lambda: None  # type: ignore[method-assign]
-    station.built.server.store.close = lambda: None  # type: ignore[method-assign]
 
 
 def test_the_first_start_password_stops_working_once_changed(tmp_path: Path) -> None:
@@ -114,11 +120,10 @@ def test_the_first_start_password_stops_working_once_changed(tmp_path: Path) -> 
         assert _sign_in(station, "admin", PASSWORDS["admin"]) != 303
     finally:
         station.stop()
-    built = build(MODEL, sqlite_url(station.db), cache=default_cache(), period=0.05)
-    again = RunningStation(built, station.db)
-    built.server.start()
+    again = _restarted(station)
     try:
         assert _sign_in(again, "admin", PASSWORDS["admin"]) != 303
+        assert _sign_in(again, "operator", PASSWORDS["operator"]) == 303  # others still can
     finally:
         again.stop()
 

@@ -6,6 +6,7 @@ import hashlib
 import json
 from pathlib import Path
 
+import pytest
 import yaml
 
 from app.station import supervisor_cache
@@ -15,7 +16,8 @@ from planner.planning.query import PlanQuery
 from planner.planning.transition_planner import TransitionPlanner
 from planner.reading import load_station
 from planner.reading.yaml_reader import scope_for
-from tests.support.paths import MINI_STATION
+from tests.support.attacks import poison_cache
+from tests.support.paths import MINI_STATION, REPOSITORY
 
 MINI = MINI_STATION
 
@@ -119,3 +121,52 @@ def test_the_order_chosen_for_search_is_saved_and_plans_exactly_like_any_other(
         other.tuned = True  # keep the order given here
         other.sym.reorder(order)
         assert [other.plan(q) for q in queries] == expected
+
+
+DEMO = REPOSITORY / "models" / "demo_station.yaml"
+
+
+def forbidden(directory: Path | None) -> tuple[int, dict[str, int]]:
+    """How many states the demo station's supervisor forbids, in all and per specification."""
+    text = DEMO.read_text()
+    planner = supervisor_cache.planner(load_station(text, str(DEMO)).model, text, "bdd", directory)
+    each = {name: planner.sym.count(f) for name, f in planner.bad_by_specification.items()}
+    return planner.sym.count(planner.bad), each
+
+
+def _poison(directory: Path) -> None:
+    poison_cache(directory, DEMO)
+
+
+def test_an_entry_rewritten_to_no_forbidden_states_is_not_believed(tmp_path: Path) -> None:
+    fresh = forbidden(tmp_path)
+    assert fresh[0] > 0
+    _poison(tmp_path)
+    assert forbidden(tmp_path) == fresh  # synthesised again: the seal did not match
+    (saved,) = entries(tmp_path)
+    assert "seal" in json.loads(saved.read_text())
+    _poison(tmp_path)
+    entry = json.loads(saved.read_text())
+    del entry["seal"]  # nor is an entry without a seal
+    saved.write_text(json.dumps(entry))
+    assert forbidden(tmp_path) == fresh
+
+
+def test_entries_sealed_with_another_key_are_synthesised_again(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    fresh = forbidden(tmp_path / "cache")
+    monkeypatch.setenv("SP_CACHE_KEY_FILE", str(tmp_path / "other.key"))
+    _poison(tmp_path / "cache")
+    assert forbidden(tmp_path / "cache") == fresh
+    assert (tmp_path / "other.key").stat().st_mode & 0o777 == 0o600
+
+
+def test_without_a_key_the_cache_is_not_used(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    blocked = tmp_path / "blocked"
+    blocked.write_text("a file, not a folder")
+    monkeypatch.setenv("SP_CACHE_KEY_FILE", str(blocked / "cache.key"))
+    assert plan(tmp_path / "cache") == plan(None)
+    assert not (tmp_path / "cache").exists()

@@ -19,12 +19,14 @@ from pathlib import Path
 import pytest
 
 from app.serve import build, default_cache
+from app.station import supervisor_cache
 from app.station.tampering import REFUSED_KEY, StoreTampered
 from app.store.db import sqlite_url
+from planner.reading import load_station
 from planner.runner.actions import StartIntention
+from tests.support.attacks import poison_cache
 from tests.support.paths import REPOSITORY
 from tests.support.stations import MODEL, PASSWORDS, RunningStation, start_station
-
 
 INTENTION = "assemble_engine"
 
@@ -145,17 +147,19 @@ def test_an_older_sealed_snapshot_written_back_stops_the_start(tmp_path: Path) -
     assert any("older copy" in p or "older than its audit log" in p for p in refused.problems)
 
 
-def test_an_alarm_shelved_to_2100_stops_the_start(stopped: Path) -> None:
-    rows = _sql(stopped, "SELECT key, data FROM alarms")
-    if not rows:  # the demo's start raises none: write the attacker's own row
-        _sql(stopped, "INSERT INTO alarms (station, key, data, updated_at, seq, mac) "
-             "VALUES ('demo_station', 'forbidden', '{}', 0, 1, 'x')")  # fmt: skip
-    else:
-        key, data = rows[0]
-        alarm = json.loads(str(data))
-        alarm.update(state="shelved", shelved_by="operator", shelved_until=4102444800.0)
-        _sql(stopped, "UPDATE alarms SET data = ? WHERE key = ?", json.dumps(alarm), key)
-    refused = _refused(stopped)
+def test_an_alarm_shelved_to_2100_stops_the_start(tmp_path: Path) -> None:
+    """A high alarm the station raised, shelved "by operator" until 2100 in the database."""
+    station = start_station(tmp_path)
+    try:
+        station.live.report_tampering("a test row", "raised for the test").result(timeout=30)
+        station.wait(lambda: bool(_sql(station.db, "SELECT key FROM alarms")))
+    finally:
+        station.stop()
+    ((key, data),) = _sql(station.db, "SELECT key, data FROM alarms")
+    alarm = json.loads(str(data))
+    alarm.update(state="shelved", shelved_by="operator", shelved_until=4102444800.0)
+    _sql(station.db, "UPDATE alarms SET data = ? WHERE key = ?", json.dumps(alarm), key)
+    refused = _refused(station.db)
     assert any("alarm" in p for p in refused.problems), refused.problems
 
 
@@ -167,8 +171,8 @@ def test_a_setting_written_outside_stops_the_start(stopped: Path) -> None:
 def test_accepting_the_changed_rows_lets_it_start_with_the_alarm(stopped: Path) -> None:
     _sql(stopped, "UPDATE stations SET world = ''")
     _refused(stopped)
-    command = [sys.executable, "-m", "app.cli.main", "store", "accept", "--db",
-               sqlite_url(stopped), "--by", "maria", "--why", "restored from last night"]  # fmt: skip
+    command = [sys.executable, "-m", "app.cli.main", "store", "accept", "--db", sqlite_url(stopped)]
+    command += ["--by", "maria", "--why", "restored from last night"]
     accepted = subprocess.run(command, capture_output=True, text=True, cwd=REPOSITORY, timeout=60)
     assert accepted.returncode == 0, accepted.stdout + accepted.stderr
     assert "state of station demo_station" in accepted.stdout
@@ -191,3 +195,20 @@ def test_sp_serve_says_why_and_exits(stopped: Path) -> None:
     assert "will not start" in result.stderr and "model version 1" in result.stderr
     assert "Traceback" not in result.stderr
     assert PASSWORDS["admin"] not in result.stdout  # no seeding on a refused store
+
+
+def test_a_poisoned_supervisor_cache_does_not_reach_the_station(tmp_path: Path) -> None:
+    """Genuine model, genuine database, the cache rewritten to "no forbidden states": the
+    station's supervisor still forbids every state synthesis forbids."""
+    cache, text = tmp_path / "cache", MODEL.read_text()
+    genuine = supervisor_cache.planner(load_station(text, str(MODEL)).model, text, "bdd", cache)
+    forbidden = genuine.sym.count(genuine.bad)
+    poison_cache(cache, MODEL)
+    built = build(MODEL, sqlite_url(tmp_path / "station.db"), cache=cache, period=0.05)
+    station = RunningStation(built, tmp_path / "station.db")
+    built.server.start()
+    try:
+        planner = built.server.live.model.transition_planner
+        assert forbidden > 0 and planner.sym.count(planner.bad) == forbidden
+    finally:
+        station.stop()
