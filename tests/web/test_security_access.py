@@ -1,7 +1,7 @@
 """Who may use which route: the permission table by every page and API route (issue 15).
 
 Both tables are written out here, independently of app/people/auth.py, so that a slip there (a
-permission given to the wrong role) or in a route (the wrong `require(...)`, a check
+permission given to the wrong role) or in a route (the wrong `Requires(...)`, a check
 forgotten) fails a test.  Every route the app serves must have a row in `ROUTES`: a new
 route without one fails `test_every_route_has_an_expected_access`, so none escapes.
 
