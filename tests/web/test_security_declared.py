@@ -32,10 +32,6 @@ NOTHING = "declares no permission"
 CHECKED_BY_THE_HANDLER = {("GET", "/"), ("GET", "/today"), ("GET", "/alarms")}
 # routes for anyone, or for anyone signed in (the handler reads the session), by name
 DECLARE_NOTHING = {
-    ("GET", "/openapi.json"),
-    ("GET", "/docs"),
-    ("GET", "/docs/oauth2-redirect"),
-    ("GET", "/redoc"),
     ("GET", "/static/{path:path}"),
     ("GET", "/healthz"),
     ("GET", "/favicon.ico"),
@@ -90,10 +86,16 @@ def declarations(app: FastAPI) -> dict[Key, frozenset[str] | str]:
     return found
 
 
+def made(api_docs: bool = False) -> FastAPI:
+    """The app as `sp serve` makes it; no station behind it (no request is sent)."""
+    return create_app(
+        cast(Server, SimpleNamespace(secure_cookies=False, api_docs=api_docs)), "s" * 32
+    )
+
+
 @pytest.fixture(scope="module")
 def app() -> FastAPI:
-    """The app as `sp serve` makes it; no station behind it (no request is sent)."""
-    return create_app(cast(Server, SimpleNamespace(secure_cookies=False)), "s" * 32)
+    return made()
 
 
 def test_each_route_declares_exactly_the_permission_of_the_table(app: FastAPI) -> None:
@@ -103,3 +105,9 @@ def test_each_route_declares_exactly_the_permission_of_the_table(app: FastAPI) -
     assert sorted(expected.keys() - served.keys()) == [], "rows for routes not served"
     wrong = {k: (v, expected[k]) for k, v in served.items() if v != expected[k]}
     assert wrong == {}, "route: (declared, expected)"
+
+
+def test_api_docs_adds_only_the_public_documentation() -> None:
+    """`sp serve --api-docs`: the page and its schema, for anyone (they show no station data)."""
+    added = declarations(made(api_docs=True)).items() - expected_declarations().items()
+    assert sorted(added) == [(("GET", "/docs"), NOTHING), (("GET", "/openapi.json"), NOTHING)]
