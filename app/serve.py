@@ -66,6 +66,7 @@ def build(
     devices: DeviceSetup | None = None,
     keys: Path | None = None,
     trusted_proxies: tuple[str, ...] = (),
+    api_docs: bool = False,
     checkpoint_period: float = 60.0,
     sequential: bool = False,
     progress: Callable[[str], None] | None = None,
@@ -78,6 +79,7 @@ def build(
     `keys`: the key file (app.store.keys; by default beside a SQLite file).
     `trusted_proxies`: addresses (or networks) of reverse proxies whose X-Forwarded-For is
     believed; none by default.
+    `api_docs`: serve /docs and /openapi.json (app.web.routes.api_docs); off by default.
     `sequential`: one operation at a time instead of the operation plan's partial order.
     `progress`: told each step as it starts, in words (`sp serve` prints them).
     """
@@ -104,19 +106,37 @@ def build(
         )  # before the loop starts: the alarm is there in its first round
     if live.simulated:
         say("loading the experiments E1-E9")
-    server = Server(
+    server = _server(store, live, model, station_keys.cookie_secret, cache,
+                     secure_cookies=secure_cookies, trusted_proxies=trusted_proxies,
+                     api_docs=api_docs)  # fmt: skip
+    if station_keys.checkpoints is not None:
+        server.checkpoints = Checkpointer(store, name, period=checkpoint_period)
+    return Built(create_app(server, station_keys.cookie_secret), server, seeded)
+
+
+def _server(
+    store: Store,
+    live: LiveStation,
+    model: ActiveModel,
+    secret: str,
+    cache: Path | None,
+    *,
+    secure_cookies: bool,
+    trusted_proxies: tuple[str, ...],
+    api_docs: bool,
+) -> Server:
+    """What every request handler may reach (`build`'s arguments of the same names)."""
+    return Server(
         store,
         live,
-        ApiTokens(station_keys.cookie_secret),
+        ApiTokens(secret),
         cache,
         throttle=SignInThrottle(),
         experiments=experiments(model.station) if live.simulated else {},
         secure_cookies=secure_cookies,
         trusted_proxies=parse_networks(trusted_proxies),
+        api_docs=api_docs,
     )
-    if station_keys.checkpoints is not None:
-        server.checkpoints = Checkpointer(store, name, period=checkpoint_period)
-    return Built(create_app(server, station_keys.cookie_secret), server, seeded)
 
 
 def _open_store(url: str) -> Store:

@@ -89,6 +89,12 @@ def parser() -> argparse.ArgumentParser:
         help="a reverse proxy (address or network) whose X-Forwarded-For is believed; "
         "none by default",
     )
+    serve.add_argument(
+        "--api-docs",
+        action="store_true",
+        help="serve the API's documentation at /docs (a vendored Swagger UI) and its schema "
+        "at /openapi.json; off by default",
+    )
     serve.add_argument("--host", default="127.0.0.1")
     serve.add_argument("--port", type=int, default=8000)
     serve.add_argument("--period", type=float, default=0.1, help="runner tick period, seconds")

@@ -140,6 +140,7 @@ def _build(
         devices=devices,
         keys=Path(args.keys) if args.keys else None,
         trusted_proxies=tuple(args.trusted_proxy),
+        api_docs=args.api_docs,
         sequential=args.sequential,
         progress=say,
     )

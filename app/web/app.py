@@ -33,6 +33,7 @@ from app.web.limits import BODY_BYTES
 from app.web.pages import values_for
 from app.web.routes import (
     alarms,
+    api_docs,
     assets,
     audit,
     auth,
@@ -81,6 +82,11 @@ def create_app(srv: Server, secret: str) -> FastAPI:
         title="Sequence Planner station",
         description="Operator, engineer and auditor HMI of one assembly station, and its JSON API.",
         version="0.1.0",
+        # FastAPI's own pages load an unpinned CDN copy with an inline script: never served;
+        # with `sp serve --api-docs`, /docs is the vendored one (app.web.routes.api_docs)
+        docs_url=None,
+        redoc_url=None,
+        openapi_url="/openapi.json" if srv.api_docs else None,
         max_body_size=BODY_BYTES,  # the model routes allow more (app.web.limits)
     )
     app.state.server = srv
@@ -92,9 +98,10 @@ def create_app(srv: Server, secret: str) -> FastAPI:
         same_site="strict",
         https_only=srv.secure_cookies,
     )
-    app.add_middleware(SecurityHeaders)  # outermost: on every answer, errors included
+    # outermost: on every answer, errors included
+    app.add_middleware(SecurityHeaders, docs=srv.api_docs)
     app.mount("/static", StaticFiles(directory=str(STATIC)), name="static")
-    for router in (*PAGES, *API):
+    for router in (*PAGES, *API, *((api_docs.router,) if srv.api_docs else ())):
         app.include_router(router)
 
     @app.get("/healthz", include_in_schema=False)

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import ipaddress
 import logging
-from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from typing import Annotated, Any
 
@@ -209,10 +208,20 @@ async def check_csrf(request: Request, caller: Caller) -> None:
         raise HTTPException(403, "the form has expired or did not come from this station; reload")
 
 
-def require(*permissions: Permission) -> Callable[[Request], Awaitable[Caller]]:
-    """A dependency: the caller, who must be signed in and hold one of `permissions`."""
+class Requires:
+    """A dependency: the caller, who must be signed in and hold one of `permissions`.
 
-    async def dependency(request: Request) -> Caller:
+    Routes depend on instances of it (the aliases below), so what each route requires can be
+    read from the app's routes (each route's dependencies), not only tried by sending
+    requests (tests/web/test_security_declared.py)."""
+
+    def __init__(self, *permissions: Permission) -> None:
+        self.permissions = permissions
+
+    def __repr__(self) -> str:
+        return f"Requires({', '.join(str(p) for p in self.permissions)})"
+
+    async def __call__(self, request: Request) -> Caller:
         # its session and user are read from the store: not on the event loop's thread,
         # which serves every page's event stream meanwhile
         caller = await run_in_threadpool(current_caller, request)
@@ -220,12 +229,10 @@ def require(*permissions: Permission) -> Callable[[Request], Awaitable[Caller]]:
             if is_api(request):
                 raise HTTPException(401, "sign in first: POST /api/token, then send a bearer token")
             raise LoginRequired()
-        if not any(allowed(caller.role, p) for p in permissions):
-            raise HTTPException(403, refusal(request, caller.role, permissions))
+        if not any(allowed(caller.role, p) for p in self.permissions):
+            raise HTTPException(403, refusal(request, caller.role, self.permissions))
         await check_csrf(request, caller)
         return caller
-
-    return dependency
 
 
 def optional_caller(request: Request) -> Caller | None:
@@ -237,17 +244,17 @@ def optional_caller(request: Request) -> Caller | None:
 OptionalCaller = Annotated[Caller | None, Depends(optional_caller)]
 # the caller, signed in and holding the permission (or a 401, a sign-in redirect or a 403
 # before the handler runs), named after what the permission lets them do
-TasksCaller = Annotated[Caller, Depends(require(Permission.TASKS))]
-AlarmViewer = Annotated[Caller, Depends(require(Permission.ALARMS))]
-Acknowledger = Annotated[Caller, Depends(require(Permission.ACKNOWLEDGE))]
-StationViewer = Annotated[Caller, Depends(require(Permission.STATION))]
-StationOrTasksCaller = Annotated[Caller, Depends(require(Permission.STATION, Permission.TASKS))]
-Controller = Annotated[Caller, Depends(require(Permission.CONTROL))]
-ModelEditor = Annotated[Caller, Depends(require(Permission.MODEL))]
-Activator = Annotated[Caller, Depends(require(Permission.ACTIVATE))]
-Simulator = Annotated[Caller, Depends(require(Permission.SIMULATE))]
-AuditReader = Annotated[Caller, Depends(require(Permission.AUDIT))]
-UserAdmin = Annotated[Caller, Depends(require(Permission.USERS))]
+TasksCaller = Annotated[Caller, Depends(Requires(Permission.TASKS))]
+AlarmViewer = Annotated[Caller, Depends(Requires(Permission.ALARMS))]
+Acknowledger = Annotated[Caller, Depends(Requires(Permission.ACKNOWLEDGE))]
+StationViewer = Annotated[Caller, Depends(Requires(Permission.STATION))]
+StationOrTasksCaller = Annotated[Caller, Depends(Requires(Permission.STATION, Permission.TASKS))]
+Controller = Annotated[Caller, Depends(Requires(Permission.CONTROL))]
+ModelEditor = Annotated[Caller, Depends(Requires(Permission.MODEL))]
+Activator = Annotated[Caller, Depends(Requires(Permission.ACTIVATE))]
+Simulator = Annotated[Caller, Depends(Requires(Permission.SIMULATE))]
+AuditReader = Annotated[Caller, Depends(Requires(Permission.AUDIT))]
+UserAdmin = Annotated[Caller, Depends(Requires(Permission.USERS))]
 # the audit log's filter from the query string, or a 422 that says what to fix
 AuditCriteria = Annotated[Criteria, Depends(filter_dependency)]
 

@@ -12,9 +12,10 @@ back button of a shared terminal after sign-out must not bring them back.  The s
 (`/static`, the same for everyone) are left to the browser's caching, and an answer that set
 its own (the icon) keeps it.
 
-The API's documentation pages (/docs, /redoc) are FastAPI's: they load Swagger UI and ReDoc
-from their CDN and start them with an inline script, so they get a policy that allows that and
-nothing more; they show no station data.
+No policy allows an inline script or style, nor anything from elsewhere.  The API's
+documentation page (/docs, off unless `sp serve --api-docs`) loads the vendored Swagger UI
+(app.web.routes.api_docs): its policy differs only in allowing data: images, which Swagger
+UI's stylesheet draws its icons with.
 """
 
 from __future__ import annotations
@@ -30,19 +31,18 @@ _COMMON = (
 POLICY = "; ".join(
     ("default-src 'self'", "script-src 'self'", "style-src 'self'", "img-src 'self'", *_COMMON)
 )
-_CDN = "https://cdn.jsdelivr.net"
+# /docs (only with `sp serve --api-docs`): the vendored Swagger UI, whose stylesheet draws its
+# icons as data: images; still only the station's own scripts and styles
 DOCS_POLICY = "; ".join(
     (
         "default-src 'self'",
-        f"script-src 'self' 'unsafe-inline' {_CDN}",
-        f"style-src 'self' 'unsafe-inline' {_CDN} https://fonts.googleapis.com",
-        "font-src https://fonts.gstatic.com",
-        "img-src 'self' data: https://fastapi.tiangolo.com https://cdn.redoc.ly",
-        "worker-src 'self' blob:",
+        "script-src 'self'",
+        "style-src 'self'",
+        "img-src 'self' data:",
         *_COMMON,
     )
 )
-DOCS_PAGES = frozenset(("/docs", "/docs/oauth2-redirect", "/redoc"))  # FastAPI's defaults
+DOCS_PAGES = frozenset(("/docs",))  # app.web.routes.api_docs
 
 _FIXED = (
     (b"x-frame-options", b"DENY"),
@@ -53,23 +53,25 @@ _NAMES = frozenset((b"content-security-policy", *(name for name, _ in _FIXED)))
 _NO_STORE = (b"cache-control", b"no-store")
 
 
-def headers_for(path: str) -> list[tuple[bytes, bytes]]:
-    policy = DOCS_POLICY if path in DOCS_PAGES else POLICY
+def headers_for(path: str, docs: bool = False) -> list[tuple[bytes, bytes]]:
+    policy = DOCS_POLICY if docs and path in DOCS_PAGES else POLICY
     return [(b"content-security-policy", policy.encode()), *_FIXED]
 
 
 class SecurityHeaders:
     """Pure ASGI middleware: adds the headers to each response start, replacing any the app
-    set; an exception before the response started still answers 500 with them."""
+    set; an exception before the response started still answers 500 with them.  `docs`:
+    /docs is served (its own policy)."""
 
-    def __init__(self, app: ASGIApp) -> None:
+    def __init__(self, app: ASGIApp, docs: bool = False) -> None:
         self.app = app
+        self.docs = docs
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] != "http":
             await self.app(scope, receive, send)
             return
-        added = headers_for(scope["path"])
+        added = headers_for(scope["path"], self.docs)
         fresh = not scope["path"].startswith("/static/")
         started = False
 

@@ -50,6 +50,7 @@ class Server:
     )
     secure_cookies: bool = False
     trusted_proxies: tuple[Network, ...] = ()
+    api_docs: bool = False  # /docs and /openapi.json (`sp serve --api-docs`)
     checkpoints: Checkpointer | None = None
     password_checks: threading.BoundedSemaphore = field(
         default_factory=lambda: threading.BoundedSemaphore(PASSWORD_CHECKS)

@@ -89,12 +89,17 @@ def test_a_cut_device_is_unavailable_and_back_when_it_answers(
     assert running.emulated.devices.links()[resource].connected
 
 
-def test_a_device_that_talks_nonsense_is_not_trusted(running: Running) -> None:
+@pytest.mark.parametrize("kind", ["short", "other_unit"])
+def test_a_device_that_talks_nonsense_is_not_trusted(running: Running, kind: str) -> None:
+    """`other_unit`: the answers come from another unit behind the nutrunner's address."""
     state = lambda: running.cycle.state  # noqa: E731
     running.run_until(lambda: not state().unavailable, 30.0)
-    running.emulated.world.request("nr", {"op": "garbage", "count": 1000, "kind": "short"})
+    running.emulated.world.request("nr", {"op": "garbage", "count": 1000, "kind": kind})
     running.run_until(lambda: "nr" in state().unavailable, 30.0)
+    assert state().unavailable == {"nr"}  # the others carry on
     assert "nr" not in running.emulated.devices.read().heartbeats
+    if kind == "other_unit":
+        assert "an answer from unit 2, not 1" in running.emulated.devices.links()["nr"].error
     running.emulated.world.request("nr", {"op": "reset"})
     running.run_until(lambda: "nr" not in state().unavailable, 30.0)
 

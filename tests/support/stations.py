@@ -144,10 +144,11 @@ def start_station(
     speed: float = 4.0,
     planning_delay: float = 0.0,
     planning_budget: float = 10.0,
+    api_docs: bool = False,
 ) -> RunningStation:
     """A demo station whose simulated devices run `speed` times faster than real time (and,
     with `planning_delay`, whose every planning query takes that many seconds more, within
-    `planning_budget`)."""
+    `planning_budget`); `api_docs` as `sp serve --api-docs`."""
     db = directory / "station.db"
     built = build(
         MODEL,
@@ -156,6 +157,7 @@ def start_station(
         period=period,
         speed=speed,
         planning=PlanningSetup(delay=planning_delay, budget=planning_budget),
+        api_docs=api_docs,
     )
     station = RunningStation(built, db)
     built.server.start()

@@ -43,7 +43,7 @@ NEGATIVE_CHECKS = [*CHECKS, negative_data_rejection]
 
 @pytest.fixture(scope="module")
 def fuzzed(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RunningStation]:
-    running = start_station(Path(tmp_path_factory.mktemp("fuzz")))
+    running = start_station(Path(tmp_path_factory.mktemp("fuzz")), api_docs=True)
     yield running
     running.stop()
 

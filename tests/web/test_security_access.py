@@ -1,7 +1,7 @@
 """Who may use which route: the permission table by every page and API route (issue 15).
 
 Both tables are written out here, independently of app/people/auth.py, so that a slip there (a
-permission given to the wrong role) or in a route (the wrong `require(...)`, a check
+permission given to the wrong role) or in a route (the wrong `Requires(...)`, a check
 forgotten) fails a test.  Every route the app serves must have a row in `ROUTES`: a new
 route without one fails `test_every_route_has_an_expected_access`, so none escapes.
 
@@ -99,11 +99,8 @@ ABSENT_ALARM = {"key": "resource:r9"}
 OWN_PASSWORD = "(the caller's password)"  # filled in when sent
 NO_ALARM = "no alarm"
 ROUTES = [
-    # FastAPI's documentation, static files, health, signing in
-    Route("GET", "/openapi.json", PUBLIC, says='"openapi"'),
-    Route("GET", "/docs", PUBLIC, says="swagger"),
-    Route("GET", "/docs/oauth2-redirect", PUBLIC, says="oauth2"),
-    Route("GET", "/redoc", PUBLIC, says="redoc"),
+    # static files, health, signing in (the API's documentation is off by default:
+    # test_api_docs.py)
     Route("GET", "/static/{path:path}", PUBLIC, url="/static/css/hmi.css"),
     Route("GET", "/healthz", PUBLIC, says='"ok":true'),
     Route("GET", "/favicon.ico", PUBLIC),  # the station's icon (app.web.routes.assets)

@@ -13,7 +13,7 @@ from app.web.limits import NAME_CHARS
 from planner.runner import Event
 
 PREFIX = "/api"
-# documents the scheme (Swagger's "Authorize"); `require` does the checking
+# documents the scheme (Swagger's "Authorize"); `Requires` does the checking
 bearer = HTTPBearer(auto_error=False, description="a token from POST /api/token")
 BEARER = [Depends(bearer)]  # every area's router's dependencies (not the token's own route)
 

@@ -2,7 +2,7 @@
 
 Signing in opens a session in the store (app.people.sessions); signing out ends it, and a
 password change ends every session and token of the user.  These forms check their CSRF
-token themselves (`require` does for everything else): a form that fails is shown again
+token themselves (`Requires` does for everything else): a form that fails is shown again
 with a 403, and a sign-out without it signs nobody out.
 """
 

@@ -15,7 +15,7 @@ from hw.modbus.emulator.nutrunner import Nutrunner
 from hw.modbus.registers import RegisterMap, encode
 
 L = TypeVar("L", bound=DeviceLogic)
-GARBAGE_KINDS = ("noise", "function", "short", "wrong_id")
+GARBAGE_KINDS = ("noise", "function", "short", "wrong_id", "other_unit")
 
 
 class Named(Protocol):

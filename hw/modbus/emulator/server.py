@@ -258,6 +258,8 @@ def corrupt(frame: bytes, kind: str) -> bytes:
     if kind == "wrong_id":  # the answer to another transaction
         tid = (int.from_bytes(frame[:2], "big") + 1) & 0xFFFF
         return tid.to_bytes(2, "big") + frame[2:]
+    if kind == "other_unit":  # this transaction's answer, from another unit behind the address
+        return frame[:6] + bytes([frame[6] % 247 + 1]) + frame[7:]
     if kind == "short" and function in (1, 2, 3, 4):  # no values at all
         return frame[:4] + b"\x00\x03" + frame[6:8] + b"\x00"
     if kind == "short" and function in (5, 6):  # the echo names another address

@@ -219,7 +219,7 @@ def test_freeze_stops_the_heartbeat_in_the_reading_and_makes_the_device_unavaila
     until(lambda: nr.available)
 
 
-@pytest.mark.parametrize("kind", ["noise", "function", "short", "wrong_id"])
+@pytest.mark.parametrize("kind", ["noise", "function", "short", "wrong_id", "other_unit"])
 def test_malformed_answers_make_the_device_unavailable_and_it_recovers(
     kind: str, ask: Callable[..., dict[str, Any]], driver: Callable[..., ModbusDriver]
 ) -> None:
@@ -230,6 +230,23 @@ def test_malformed_answers_make_the_device_unavailable_and_it_recovers(
     assert "malformed answer" in plc.status().error
     until(lambda: plc.available)
     assert plc.status().restarts == 1
+
+
+def test_an_answer_from_another_unit_is_refused_and_its_values_never_used(
+    ask: Callable[..., dict[str, Any]], driver: Callable[..., ModbusDriver]
+) -> None:
+    """The right transaction's answer from unit 2 (another device behind a gateway's
+    address) when the driver asked unit 1: never taken as this device's values."""
+    plc = driver("plc")
+    until(lambda: plc.available)
+    ask("garbage", "plc", kind="other_unit", count=1000)
+    until(lambda: not plc.available, timeout=TIMEOUT + 0.3)
+    assert plc.status().error == "malformed answer: an answer from unit 2, not 1"
+    last = plc.latest()
+    time.sleep(3 * TIMEOUT)  # several more answers, each from unit 2
+    assert plc.latest() is last and not plc.available
+    ask("garbage", "plc", kind="other_unit", count=0)
+    until(lambda: plc.available)
 
 
 def test_a_modbus_exception_makes_the_device_unavailable_without_raising(

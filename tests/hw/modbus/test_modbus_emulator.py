@@ -309,6 +309,7 @@ def raw_read_input_registers(port: int) -> bytes:
         ("function", lambda f: f[7] == 0x63),
         ("short", lambda f: f[7] == 4 and f[8] == 0 and len(f) == 9),
         ("wrong_id", lambda f: f[:2] == b"\x00\x08"),
+        ("other_unit", lambda f: f[:2] == b"\x00\x07" and f[6] == 2 and f[7:9] == b"\x04\x02"),
     ],
 )
 def test_garbage_answers_are_malformed_as_documented_then_good_again(
