@@ -33,7 +33,7 @@ class ModelBudget:
     to read it (validation), `memory` bytes of address space for either, `at_once` checks."""
 
     seconds: float = 60.0
-    read_seconds: float = 20.0
+    read_seconds: float = 60.0
     memory: int = 2 * 2**30
     at_once: int = 2
 
