@@ -35,7 +35,7 @@ def test_a_memory_capped_server_answers_model_bombs_with_4xx(tmp_path: Path) -> 
     env = {**os.environ, "SP_CACHE_DIR": str(tmp_path / "cache")}
     server = subprocess.Popen(
         command, cwd=REPOSITORY, stdout=log, stderr=subprocess.STDOUT, env=env,
-        preexec_fn=_capped,  # noqa: PLW1509 (no threads in this test process to worry about)
+        preexec_fn=_capped,  # the cap, set in the child between fork and exec
     )  # fmt: skip
     url = f"http://127.0.0.1:{port}"
     try:
