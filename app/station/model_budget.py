@@ -81,7 +81,7 @@ class ModelChecks:
             raise OverBudget("other models are being checked; try again in a moment")
         context = multiprocessing.get_context("spawn")
         receive, send = context.Pipe(duplex=False)
-        args = (kind, text, file, cache, self.budget.memory, send)
+        args = (kind, text, file, cache, self.budget.memory, seconds, send)
         process = context.Process(target=_work, args=args, name=f"model-{kind}", daemon=True)
         try:
             process.start()
@@ -106,11 +106,20 @@ class ModelChecks:
         return found
 
 
-def _work(kind: str, text: str, file: str, cache: Path | None, memory: int, send: Any) -> None:
-    """The child: limit itself, say it is ready, read (and build), answer."""
-    _, hard = resource.getrlimit(resource.RLIMIT_AS)
-    limit = memory if hard == resource.RLIM_INFINITY else min(memory, hard)
-    resource.setrlimit(resource.RLIMIT_AS, (limit, hard))
+def _limit(which: int, most: int) -> None:
+    """Lower the soft and hard limit `which` to `most` (never raise it)."""
+    _, hard = resource.getrlimit(which)
+    limit = most if hard == resource.RLIM_INFINITY else min(most, hard)
+    resource.setrlimit(which, (limit, limit))
+
+
+def _work(
+    kind: str, text: str, file: str, cache: Path | None, memory: int, seconds: float, send: Any
+) -> None:
+    """The child: limit itself, say it is ready, read (and build), answer.  Its CPU time is
+    limited too, so that it ends even when its parent was killed (with -9) meanwhile."""
+    _limit(resource.RLIMIT_AS, memory)
+    _limit(resource.RLIMIT_CPU, int(seconds + READY_WITHIN) + 1)
     os.nice(10)  # the station loop's process comes first
     from app.station import supervisor_cache
     from planner.reading import load_station
