@@ -72,15 +72,20 @@ def test_model_bombs_stall_neither_the_loop_nor_the_server(guarded: RunningStati
         idle = http.get("/healthz", params={"since": quiet}).json()["loop"]
         since = idle["now"]
 
-        def save(text: str) -> httpx.Response:
+        deadline = time.monotonic() + 8  # some 80 rounds: p99 is not one round's gap
+
+        def save(text: str) -> list[httpx.Response]:
+            answers = []
             with httpx.Client(base_url=guarded.url, timeout=120, headers=auth) as own:
-                return own.post("/api/models", json={"text": text, "note": "bomb"})
+                while not answers or time.monotonic() < deadline:
+                    answers.append(own.post("/api/models", json={"text": text, "note": "b"}))
+            return answers
 
         bombs = [predicate_bomb(30), predicate_bomb(60, "->"), alias_bomb(), alias_bomb(12, 7)]
         with ThreadPoolExecutor(max_workers=4) as pool:
             saves = [pool.submit(save, text) for text in bombs]
             activated = http.post(f"/api/models/{number}/activate")
-            answers = [s.result() for s in saves]
+            answers = [answer for s in saves for answer in s.result()]
         summary = http.get("/healthz", params={"since": since}).json()
         health = http.get("/healthz").json()
 
@@ -88,7 +93,7 @@ def test_model_bombs_stall_neither_the_loop_nor_the_server(guarded: RunningStati
     detail = activated.json()["detail"]
     assert "the supervisor is too large to build within 2 s" in detail
     assert f"model version {number}" in detail and "version 1 runs on" in detail
-    assert [a.status_code for a in answers] == [422] * 4, [a.text[:200] for a in answers]
+    assert {a.status_code for a in answers} == {422}, [a.text[:200] for a in answers]
     assert all("line" in a.json()["detail"] for a in answers)
     loop = summary["loop"]
     assert loop["rounds"] > 10, loop
@@ -99,7 +104,7 @@ def test_model_bombs_stall_neither_the_loop_nor_the_server(guarded: RunningStati
     assert health["model"] == 1 and guarded.live.model.number == 1
     rounds = guarded.live.loop_summary()["rounds"]
     guarded.wait(lambda: guarded.live.loop_summary()["rounds"] > rounds, 5)  # still running
-    assert refusals(guarded, "validation refused") == 4
+    assert refusals(guarded, "validation refused") == len(answers) >= 4
     assert refusals(guarded, "validated") == 1
     assert refusals(guarded, "activation refused: over budget") == 1
 
