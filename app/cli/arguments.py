@@ -109,6 +109,20 @@ def parser() -> argparse.ArgumentParser:
     )
     serve.add_argument("--no-cache", action="store_true", help="do not reuse saved supervisors")
     serve.add_argument(
+        "--model-seconds",
+        type=float,
+        default=60.0,
+        metavar="S",
+        help="a model version's supervisor must be built within S seconds to be activated",
+    )
+    serve.add_argument(
+        "--model-memory",
+        type=int,
+        default=2048,
+        metavar="MB",
+        help="memory a model may take to be read or built (in a child process)",
+    )
+    serve.add_argument(
         "--sequential",
         action="store_true",
         help="one operation at a time instead of the operation plan's partial order",

@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from app.cli.common import UsageError, device_file, planner_for, read_station, remember_order
+from app.station.model_budget import ModelBudget, ModelChecks
 from planner.model.station import Station
 from planner.runner import Event, EventKind, QueryObserver
 
@@ -58,6 +59,8 @@ def serve(args: argparse.Namespace) -> int:
         print(f"starting the station on http://{args.host}:{args.port} (store: {args.db})")
         try:
             built = _build(args, model, devices, say)
+            budget = ModelBudget(seconds=args.model_seconds, memory=args.model_memory * 2**20)
+            built.server.models = ModelChecks(budget)
         except KeyFileError as exc:
             raise UsageError(str(exc)) from None
         except StoreTampered as exc:

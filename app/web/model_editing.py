@@ -1,9 +1,12 @@
 """Validating, saving, comparing and activating model versions; shared by pages and API.
 
 Validation runs the real loader, so the editor shows exactly what `sp check` would say, each
-problem at its line and column.  Activation builds the new version's planners first (the
-supervisor synthesis can take seconds, in a worker thread) and only then asks the station to
-switch, which it refuses unless it is idle or in restart mode.
+problem at its line and column, in a child process within the model budget
+(`app.station.model_budget`), and is audited.  Activation builds the new version's
+supervisor first, in such a child too (over budget: "the supervisor is too large to build
+within N s", and the running model goes on), then its planners from the cache the child
+filled, and only then asks the station to switch, which it refuses unless it is idle or in
+restart mode.
 """
 
 from __future__ import annotations
@@ -11,6 +14,7 @@ from __future__ import annotations
 import contextlib
 import difflib
 import gc
+import hashlib
 from dataclasses import dataclass
 
 from fastapi import HTTPException
@@ -18,6 +22,7 @@ from sqlalchemy.orm import Session
 from starlette.concurrency import run_in_threadpool
 
 from app.station.experiments import experiments
+from app.station.model_budget import OverBudget
 from app.station.requests import StationError
 from app.station.view import build_model
 from app.store import audit, integrity, versions
@@ -26,8 +31,6 @@ from app.store.tables import ModelVersion
 from app.web.actions import answer
 from app.web.limits import MAX_MODEL_CHARS
 from app.web.server import Server
-from planner.reading import load_station
-from planner.reading.yaml_reader import ModelError
 
 
 @dataclass(frozen=True)
@@ -37,24 +40,40 @@ class Problem:
     message: str
 
 
-def problems(text: str) -> list[Problem]:
-    """Every problem the loader finds in `text` (empty when the model is valid)."""
+def problems(srv: Server, text: str) -> list[Problem]:
+    """Every problem the loader finds in `text` (empty when the model is valid), read in a
+    child process within the model budget (over it: a problem at line 1, column 1)."""
     if len(text) > MAX_MODEL_CHARS:
         return [Problem(1, 1, f"the model is longer than {MAX_MODEL_CHARS} characters")]
     if not text.strip():
         return [Problem(1, 1, "the model is empty")]
     try:
-        load_station(text, "model")
-    except ModelError as exc:
-        return [Problem(d.location.line, d.location.column, d.message) for d in exc.diagnostics]
-    return []
+        found = srv.models.problems(text, "model")
+    except OverBudget as exc:
+        return [Problem(1, 1, exc.message)]
+    return [Problem(line, column, message) for line, column, message in found]
+
+
+def validate(srv: Server, text: str, user: str) -> list[Problem]:
+    """`problems`, audited: who validated which text (its SHA-256) and what was found."""
+    found = problems(srv, text)
+    detail: dict[str, object] = {"sha256": hashlib.sha256(text.encode()).hexdigest()}
+    if found:
+        first = found[0]
+        detail["problems"] = len(found)
+        detail["first"] = f"line {first.line}, column {first.column}: {first.message}"[:300]
+    subject = "validation refused" if found else "validated"
+    entry = AuditEntry(AuditKind.MODEL, subject, user, "", detail)
+    audit.write(srv.store, srv.live.name, [entry], srv.live.wall())
+    return found
 
 
 def save(
     srv: Server, text: str, author: str, note: str
 ) -> tuple[ModelVersion | None, list[Problem]]:
-    """Save `text` as a new version if it is valid; audited.  (None, problems) otherwise."""
-    found = problems(text)
+    """Save `text` as a new version if it is valid; audited (its validation too).
+    (None, problems) otherwise."""
+    found = validate(srv, text, author)
     if found:
         return None, found
     name = srv.live.name
@@ -118,6 +137,24 @@ async def _refuse_tampered(srv: Server, row: ModelVersion, why: str, user: str) 
     raise HTTPException(409, f"{why}; it is not activated (the refusal is audited)")
 
 
+async def _built_within_budget(srv: Server, row: ModelVersion, user: str) -> None:
+    """The version's supervisor synthesised in a child within the budget (into the cache,
+    which `build_model` then reads); over budget, the refusal is audited and said (422),
+    and the running model is untouched."""
+    file = f"model version {row.number}"
+    try:
+        found = await run_in_threadpool(srv.models.build, row.text, file, srv.cache)
+        why = "; ".join(f"line {line}, column {column}: {m}" for line, column, m in found[:3])
+    except OverBudget as exc:
+        why = f"{file}: {exc.message}"
+    if not why:
+        return
+    detail = {"version": row.number, "why": why[:500]}
+    entry = AuditEntry(AuditKind.MODEL, "activation refused: over budget", user, "", detail)
+    await run_in_threadpool(audit.write, srv.store, srv.live.name, [entry], srv.live.wall())
+    raise HTTPException(422, f"{why}; it is not activated, version {srv.live.model.number} runs on")
+
+
 async def _activate(srv: Server, number: int, user: str) -> None:
     row = stored(srv, number)
     refused = integrity.version_problem(srv.store, row)
@@ -128,6 +165,7 @@ async def _activate(srv: Server, number: int, user: str) -> None:
     why = srv.live.busy()
     if why:
         raise HTTPException(409, f"{why}; activate when it is idle or in restart mode")
+    await _built_within_budget(srv, row, user)
     model = await run_in_threadpool(build_model, row, srv.cache)
     prepared = await run_in_threadpool(srv.live.prepare, model)
     await answer(srv.live.activate(prepared, user))

@@ -13,6 +13,7 @@ from fastapi.templating import Jinja2Templates
 from app.people.sessions import ApiTokens
 from app.people.throttle import SignInThrottle
 from app.station.live import LiveStation
+from app.station.model_budget import ModelChecks
 from app.station.scenario import Scenario
 from app.store.checkpoints import Checkpointer
 from app.store.db import Store
@@ -58,6 +59,8 @@ class Server:
     tampered: set[str] = field(default_factory=set)  # users whose tampered row was said
     # held by the one model activation under way (each builds a runner and a planning worker)
     activation: threading.Lock = field(default_factory=threading.Lock)
+    # models read and built in a child process within their budget (app.station.model_budget)
+    models: ModelChecks = field(default_factory=ModelChecks)
 
     def start(self) -> None:
         """The station loop and the audit checkpoints (the web app is served by the caller)."""

@@ -14,6 +14,7 @@ from collections.abc import Callable, Mapping
 from planner.model.expression_syntax import AssignSyntax, SyntaxNode, Word, parse_syntax
 from planner.model.expressions import (
     MAX_NESTING,
+    MAX_TERMS,
     Assign,
     BoolVar,
     Const,
@@ -28,6 +29,7 @@ from planner.model.expressions import (
     depth,
     disjunction,
     negation,
+    size,
 )
 
 
@@ -51,6 +53,7 @@ class Scope:
         self.suggest = suggest or (lambda name: None)
         self.aliases = aliases or {}
         self.depths: dict[int, tuple[Expr, int]] = {}  # the predicates' `depth`s, as measured
+        self.sizes: dict[int, tuple[Expr, int]] = {}  # and their `size`s
 
     def canonical(self, word: Word) -> Word:
         """The word with a local name (a resource's `ref`) replaced by its global name."""
@@ -94,7 +97,21 @@ def resolve(node: SyntaxNode, scope: Scope) -> Expr:
             "predicates it names)",
             0,  # the whole expression is too deep, not one place in it
         )
+    _bounded([expr], scope)
     return expr
+
+
+def _bounded(parts: list[Expr], scope: Scope) -> None:
+    """Refuse what would be more than `MAX_TERMS` nodes written out, before it is made: a
+    join copies the parts of the parts it flattens, so predicates that each name the one
+    before twice would double the work, line by line (issue 26)."""
+    terms = len(parts) - 1 + sum(size(part, scope.sizes) for part in parts)
+    if terms > MAX_TERMS:
+        raise ExpressionError(
+            f"more than {MAX_TERMS} terms with the predicates it names written out (a "
+            "predicate that names another twice doubles it): name fewer, or write it out",
+            0,
+        )
 
 
 def _resolve(node: SyntaxNode, scope: Scope) -> tuple[Expr, int]:
@@ -108,6 +125,7 @@ def _resolve(node: SyntaxNode, scope: Scope) -> tuple[Expr, int]:
             return negation(arg), levels - 1 if isinstance(arg, Not) else levels + 1
         case "&&" | "||":
             parts = [_resolve(a, scope) for a in node.args]
+            _bounded([part for part, _ in parts], scope)
             join = conjunction if node.op == "&&" else disjunction
             expr = join([part for part, _ in parts])
             return expr, _joined_depth(expr, parts)

@@ -21,6 +21,11 @@ MAX_NESTING = 100
 recursive walker over expressions (parser, resolution, formatting, the BDD and SAT compilers,
 the runner's predicates) stays well within Python's recursion limit."""
 
+MAX_TERMS = 100_000
+"""How many nodes one expression may have with the predicates it names written out: a
+predicate naming the one before twice doubles per line, so 20 lines of text would stand for
+millions of nodes that joining copies and every planner walks (issue 26)."""
+
 
 class ExpressionError(Exception):
     """A problem in expression or action text, at a character offset of that text."""
@@ -168,6 +173,28 @@ def depth(expr: Expr, measured: dict[int, tuple[Expr, int]] | None = None) -> in
             continue
         todo.pop()
         known[id(node)] = (node, 1 + max(known[id(o)][1] for o in operands) if operands else 0)
+    return known[id(expr)][1]
+
+
+def size(expr: Expr, measured: dict[int, tuple[Expr, int]] | None = None) -> int:
+    """How many nodes `expr` has written out as a tree (a shared part counted each time it
+    appears), counted over its shared nodes once each, as `depth` is: linear in what is held,
+    whatever it stands for."""
+    known = {} if measured is None else measured
+    todo = [expr]
+    while todo:
+        node = todo[-1]
+        entry = known.get(id(node))
+        if entry is not None and entry[0] is node:
+            todo.pop()
+            continue
+        operands = _operands(node)
+        waiting = [o for o in operands if (e := known.get(id(o))) is None or e[0] is not o]
+        if waiting:
+            todo.extend(waiting)
+            continue
+        todo.pop()
+        known[id(node)] = (node, 1 + sum(known[id(o)][1] for o in operands))
     return known[id(expr)][1]
 
 

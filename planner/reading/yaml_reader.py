@@ -22,7 +22,7 @@ from planner.model.expression_syntax import (
     substitute,
 )
 from planner.model.expression_text import Scope, resolve, resolve_assign
-from planner.model.expressions import Assign, Expr, ExpressionError, Value
+from planner.model.expressions import Assign, Expr, ExpressionError, Value, size
 from planner.model.flat import (
     SourceLocation,
 )
@@ -41,6 +41,10 @@ composer recurses in C, so that `[[[[...` 100,000 deep kills the process (editor
 MAX_ALIAS_NODES = 100_000
 """Nodes that aliases may add to a model beyond those written out in its text: ten anchors
 of ten aliases each stand for 10^10 nodes, which reading would walk one by one."""
+MAX_MODEL_TERMS = 2_000_000
+"""Nodes all of a model's expressions may have with the predicates they name written out
+(each alone at most `MAX_TERMS`): what reading copies and the planners walk, linear in it.
+The demo station has some 1,800; a 1.5 MB station of 560 cells some 70,000."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -74,6 +78,8 @@ class Reader:
         self.text = text
         self.file = file
         self.diagnostics: list[Diagnostic] = []
+        self.terms = 0  # nodes of the expressions read so far, written out (`MAX_MODEL_TERMS`)
+        self.sizes: dict[int, tuple[Expr, int]] = {}  # `size`'s memory, shared by them all
 
     def at(self, node: yaml.Node) -> SourceLocation:
         mark = node.start_mark
@@ -265,7 +271,16 @@ class Reader:
     def expression(
         self, node: yaml.Node, scope: Scope, what: str, values: Mapping[str, str] | None = None
     ) -> Expr | None:
-        return self._parse(node, what, values, lambda text: resolve(parse_syntax(text), scope))
+        expr = self._parse(node, what, values, lambda text: resolve(parse_syntax(text), scope))
+        if expr is not None:
+            self.terms += size(expr, self.sizes)
+            if self.terms > MAX_MODEL_TERMS:
+                message = (
+                    f"in {what}: the model's expressions have more than {MAX_MODEL_TERMS} "
+                    "terms with the predicates they name written out"
+                )
+                raise ModelError([*self.diagnostics, Diagnostic(self.at(node), message)])
+        return expr
 
     def action(
         self, node: yaml.Node, scope: Scope, what: str, values: Mapping[str, str] | None = None

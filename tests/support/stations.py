@@ -17,6 +17,7 @@ import uvicorn
 from fastapi.testclient import TestClient
 
 from app.serve import Built, build, default_cache
+from app.station.model_budget import ModelBudget, ModelChecks
 from app.station.running import PlanningSetup
 from app.store.db import sqlite_url
 from app.web import http_server
@@ -145,6 +146,7 @@ def start_station(
     planning_delay: float = 0.0,
     planning_budget: float = 10.0,
     api_docs: bool = False,
+    model_budget: ModelBudget | None = None,
 ) -> RunningStation:
     """A demo station whose simulated devices run `speed` times faster than real time (and,
     with `planning_delay`, whose every planning query takes that many seconds more, within
@@ -159,6 +161,8 @@ def start_station(
         planning=PlanningSetup(delay=planning_delay, budget=planning_budget),
         api_docs=api_docs,
     )
+    if model_budget is not None:
+        built.server.models = ModelChecks(model_budget)
     station = RunningStation(built, db)
     built.server.start()
     return station

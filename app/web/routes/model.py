@@ -89,10 +89,11 @@ def model_editor(
     form_limits=MODEL_FORM_LIMITS,  # type: ignore[arg-type]
 )
 def validate_model(
-    request: Request, caller: ModelEditor, live: LiveDep, text: Text = ""
+    request: Request, caller: ModelEditor, srv: ServerDep, text: Text = ""
 ) -> Response:
-    found = model_editing.problems(text)
-    return render(request, "_model_errors.html", caller, "model", view=live.view, problems=found)
+    found = model_editing.validate(srv, text, caller.name)
+    view = srv.live.view
+    return render(request, "_model_errors.html", caller, "model", view=view, problems=found)
 
 
 @router.post(

@@ -1,0 +1,187 @@
+"""Budgets for models: reading and building a supervisor in a child process, within limits.
+
+An engineer's model can stand for far more than its text: predicates built on predicates, a
+specification whose supervisor takes exponential time to synthesise (issue 26: a valid 8 KB
+model took 52 s, with the station loop stalled for seconds meanwhile, since the BDD library
+holds the GIL).  So the server never reads or synthesises a model it has not yet seen within
+bounds: a child process does, under a memory limit (`RLIMIT_AS`) and at a lower priority,
+and is ended once it runs past its time.  The server then builds the version from the
+supervisor cache the child filled (`app.station.supervisor_cache`), which takes a moment.
+
+The life of one check: the child (`python -m app.station.model_budget`) is started and says
+it is ready (imports are not counted against the budget); the parent then waits at most the
+budget's seconds for the answer; a child that runs past them is killed, and one that died
+(out of memory: CUDD aborts, Python raises MemoryError) is said so.  At most `at_once`
+children run at a time; others wait.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import resource
+import select
+import subprocess
+import sys
+import threading
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO, Any
+
+ROOT = Path(__file__).resolve().parents[2]  # where `app` and `planner` are imported from
+READY_WITHIN = 60.0  # seconds a child may take to start (imports, on a busy machine)
+
+
+@dataclass(frozen=True)
+class ModelBudget:
+    """What one model may cost the station: `seconds` to build its supervisor, `read_seconds`
+    to read it (validation), `memory` bytes of address space for either, `at_once` checks."""
+
+    seconds: float = 60.0
+    read_seconds: float = 60.0
+    memory: int = 2 * 2**30
+    at_once: int = 2
+
+
+class OverBudget(Exception):
+    """A model that cannot be read or built within the budget: `message` says which, in
+    words for the engineer."""
+
+    def __init__(self, message: str) -> None:
+        super().__init__(message)
+        self.message = message
+
+
+Found = list[tuple[int, int, str]]  # (line, column, message) of each problem
+
+
+@dataclass
+class ModelChecks:
+    """Runs the budgeted checks of models (module docstring); shared by the whole server."""
+
+    budget: ModelBudget = field(default_factory=ModelBudget)
+    slots: threading.BoundedSemaphore = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.slots = threading.BoundedSemaphore(self.budget.at_once)
+
+    def problems(self, text: str, file: str) -> Found:
+        """Every problem reading `text` finds (empty when valid); OverBudget past the budget."""
+        seconds = self.budget.read_seconds
+        found: Found = self._run("read", text, file, None, seconds, "to read")
+        return found
+
+    def build(self, text: str, file: str, cache: Path | None) -> Found:
+        """Read `text` and synthesise its supervisor into `cache`; the problems reading
+        found, or OverBudget: "the supervisor is too large to build within N s"."""
+        seconds = self.budget.seconds
+        found: Found = self._run("build", text, file, cache, seconds, "to build")
+        return found
+
+    def _run(
+        self, kind: str, text: str, file: str, cache: Path | None, seconds: float, doing: str
+    ) -> Found:
+        what = "the supervisor is too large" if kind == "build" else "the model is too large"
+        megabytes = self.budget.memory // 2**20
+        if not self.slots.acquire(timeout=READY_WITHIN):
+            raise OverBudget("other models are being checked; try again in a moment")
+        where = None if cache is None else str(cache)
+        job: dict[str, Any] = {"kind": kind, "text": text, "file": file, "cache": where}
+        job |= {"memory": self.budget.memory, "seconds": seconds}
+        # a program of its own, not multiprocessing's spawn: that would import the server's
+        # whole `__main__` (FastAPI and all) in each child, at the station's priority
+        command = [sys.executable, "-m", "app.station.model_budget"]
+        child = subprocess.Popen(
+            command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, bufsize=0, env=_environment()
+        )
+        try:
+            assert child.stdin is not None and child.stdout is not None
+            with contextlib.suppress(BrokenPipeError):
+                child.stdin.write(json.dumps(job).encode())
+                child.stdin.close()
+            if _line(child.stdout, READY_WITHIN) is None:
+                raise OverBudget("the model could not be checked: its process did not start")
+            answer = _line(child.stdout, seconds)
+            if answer is None:
+                raise OverBudget(f"{what} {doing} within {seconds:g} s")
+        finally:
+            if child.poll() is None:
+                child.kill()
+            child.wait(timeout=10)
+            if child.stdout is not None:
+                child.stdout.close()
+            self.slots.release()
+        if not answer or answer["outcome"] == "memory":  # died (CUDD aborts) or MemoryError
+            raise OverBudget(f"{what} {doing} within {megabytes} MB of memory")
+        return [(line, column, message) for line, column, message in answer["found"]]
+
+
+def _environment() -> dict[str, str]:
+    """The server's environment, with this repository first on the child's import path."""
+    paths = [str(ROOT), *filter(None, os.environ.get("PYTHONPATH", "").split(os.pathsep))]
+    return {**os.environ, "PYTHONPATH": os.pathsep.join(paths)}
+
+
+def _line(stream: IO[bytes], seconds: float) -> dict[str, Any] | None:
+    """The child's next line (JSON) within `seconds`: None past them, {} at its end."""
+    ready, _, _ = select.select([stream], [], [], seconds)
+    if not ready:
+        return None
+    line = stream.readline()
+    if not line:
+        return {}
+    found: dict[str, Any] = json.loads(line)
+    return found
+
+
+def _limit(which: int, most: int) -> None:
+    """Lower the soft and hard limit `which` to `most` (never raise it)."""
+    _, hard = resource.getrlimit(which)
+    limit = most if hard == resource.RLIM_INFINITY else min(most, hard)
+    resource.setrlimit(which, (limit, limit))
+
+
+def main() -> None:
+    """The child (`python -m app.station.model_budget`): lower its priority and limit itself,
+    say it is ready, read (and build), answer; a job (JSON) on stdin, lines of JSON out.  Its
+    CPU time is limited too, so that it ends even when its parent was killed meanwhile."""
+    os.nice(10)  # the station loop's process comes first, imports included
+    job = json.loads(sys.stdin.buffer.read())
+    _limit(resource.RLIMIT_AS, job["memory"])
+    _limit(resource.RLIMIT_CPU, int(job["seconds"] + READY_WITHIN) + 1)
+    out = os.fdopen(os.dup(1), "w")
+    os.dup2(2, 1)  # what libraries print goes to stderr, not into the answer
+
+    def say(**answer: Any) -> None:
+        out.write(json.dumps(answer) + "\n")
+        out.flush()
+
+    from app.station import supervisor_cache
+    from planner.reading import load_station
+    from planner.reading.yaml_reader import ModelError
+
+    say(ready=True)
+    text, file = job["text"], job["file"]
+    cache = None if job["cache"] is None else Path(job["cache"])
+    try:
+        station = load_station(text, file)
+        if job["kind"] == "build":
+            planner = supervisor_cache.planner(station.model, text, "bdd", cache)
+            planner.prepare()
+            supervisor_cache.remember_order(planner, text, cache)
+    except ModelError as exc:
+        found = [(d.location.line, d.location.column, d.message) for d in exc.diagnostics]
+        say(outcome="problems", found=found)
+        return
+    except MemoryError:
+        say(outcome="memory", found=[])
+        return
+    except Exception as exc:  # a fault of ours, said to the engineer (the server goes on)
+        say(outcome="problems", found=[(1, 1, f"the model could not be checked: {exc}")])
+        return
+    say(outcome="ok", found=[])
+
+
+if __name__ == "__main__":
+    main()
