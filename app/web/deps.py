@@ -184,6 +184,8 @@ def current_caller(request: Request) -> Caller | None:
                 if found is not None:
                     session.expunge_all()
         if found is None or found.row.kind != SessionKind.API or not trusted_session(srv, found):
+            # counted for the audit log per address block (app.people.failures), not written
+            srv.failures.note("bad token", client_address(request), srv.live.wall())
             raise HTTPException(
                 401, "the bearer token is invalid, expired or revoked; get a new one"
             )
