@@ -75,9 +75,7 @@ def check_rows(
                 check.seqs[identity] = seq
             if problem:
                 steers = _steers(spec, values, station, active)
-                check.findings.append(
-                    Finding(identity, f"{spec.shown(values)}: {problem}", steers)
-                )
+                check.findings.append(Finding(identity, f"{spec.shown(values)}: {problem}", steers))
     for identity, seq in sorted(known.items()):
         owner = _spec_of(identity)
         if identity in check.seqs or owner is None or owner.deletable:

@@ -215,19 +215,32 @@ def require(*permissions: Permission) -> Callable[[Request], Awaitable[Caller]]:
     """A dependency: the caller, who must be signed in and hold one of `permissions`."""
 
     async def dependency(request: Request) -> Caller:
-        # its session and user are read from the store: not on the event loop's thread,
-        # which serves every page's event stream meanwhile
-        caller = await run_in_threadpool(current_caller, request)
-        if caller is None:
-            if is_api(request):
-                raise HTTPException(401, "sign in first: POST /api/token, then send a bearer token")
-            raise LoginRequired()
-        if not any(allowed(caller.role, p) for p in permissions):
-            raise HTTPException(403, refusal(request, caller.role, permissions))
-        await check_csrf(request, caller)
-        return caller
+        return await admitted(request, permissions)
 
     return dependency
+
+
+async def admitted(request: Request, permissions: tuple[Permission, ...] | None) -> Caller:
+    """The caller, signed in, holding one of `permissions` (None: any signed-in caller),
+    with the CSRF token on an unsafe request; kept in `request.state.caller` for the
+    handler's refusals (app.web.outcomes: only those past this gate are audited)."""
+    # its session and user are read from the store: not on the event loop's thread,
+    # which serves every page's event stream meanwhile
+    caller = await run_in_threadpool(current_caller, request)
+    if caller is None:
+        if is_api(request):
+            raise HTTPException(401, "sign in first: POST /api/token, then send a bearer token")
+        raise LoginRequired()
+    if permissions is not None and not any(allowed(caller.role, p) for p in permissions):
+        raise HTTPException(403, refusal(request, caller.role, permissions))
+    await check_csrf(request, caller)
+    request.state.caller = caller
+    return caller
+
+
+async def signed_in(request: Request) -> Caller:
+    """A dependency: the caller, whoever they are, signed in (their own account's page)."""
+    return await admitted(request, None)
 
 
 def optional_caller(request: Request) -> Caller | None:
@@ -250,6 +263,7 @@ Activator = Annotated[Caller, Depends(require(Permission.ACTIVATE))]
 Simulator = Annotated[Caller, Depends(require(Permission.SIMULATE))]
 AuditReader = Annotated[Caller, Depends(require(Permission.AUDIT))]
 UserAdmin = Annotated[Caller, Depends(require(Permission.USERS))]
+SignedIn = Annotated[Caller, Depends(signed_in)]  # anyone signed in: their own account
 # the audit log's filter from the query string, or a 422 that says what to fix
 AuditCriteria = Annotated[Criteria, Depends(filter_dependency)]
 
