@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import re
+from typing import Any
 
 from starlette.testclient import TestClient
 
@@ -102,3 +103,32 @@ def test_tokens_through_the_api(station: RunningStation) -> None:
     assert api.delete(f"/api/tokens/{ids[0]}").status_code == 200
     assert bearer(station, two) == 401 and bearer(station, one) == 200
     assert [t["id"] for t in api.get("/api/tokens").json()] == ids[1:]
+
+
+def test_the_link_to_the_session_is_sealed_and_older_rows_keep_their_seals() -> None:
+    """A token's `issued_by` is in its seal: blanking it in the database (so that the
+    token outlives its session's sign-out) breaks the seal.  A row from before the column
+    (empty) is sealed as it was."""
+    from app.store.keys import ephemeral_keys
+    from app.store.row_seals import SESSIONS
+
+    row: dict[str, Any] = {
+        "id": "a" * 64,
+        "user_id": 2,
+        "kind": "api",
+        "created_at": 1.0,
+        "expires_at": 2.0,
+        "revoked_at": None,
+        "revoked_why": "",
+        "address": "10.0.0.1",
+        "issued_by": "",
+        "seq": 3,
+    }
+    before = ["a" * 64, 2, "api", "1.0", "2.0", None, "", "10.0.0.1", 3]
+    assert SESSIONS.text(row) == json.dumps(before, separators=(",", ":"))
+    keys = ephemeral_keys()
+    linked = {**row, "issued_by": "b" * 64}
+    sealed = {**linked, "mac": SESSIONS.mac(keys, linked)}
+    assert SESSIONS.intact(keys, sealed)
+    assert not SESSIONS.intact(keys, {**sealed, "issued_by": ""})
+    assert not SESSIONS.intact(keys, {**sealed, "issued_by": "c" * 64})
