@@ -29,16 +29,27 @@ from planner.runner import EventKind
 
 # a handler's refusals (a gate's 401 and 403 are not among them)
 REFUSALS = frozenset({400, 404, 409, 422, 429, 503})
-# the page each area's forms are on, and the kind its refusals are audited as
-AREAS: dict[str, tuple[str, RecordKind]] = {
-    "tasks": ("/", EventKind.REFUSED),
-    "alarms": ("/alarms", AuditKind.ALARM),
-    "station": ("/station", EventKind.REFUSED),
-    "model": ("/model", AuditKind.MODEL),
-    "simulation": ("/simulation", AuditKind.EXPERIMENT),
-    "users": ("/users", AuditKind.USER),
-    "account": ("/account", AuditKind.LOGIN),
-    "tokens": ("/account", AuditKind.LOGIN),  # the API's /api/tokens
+# the page each area's forms are on ("/": the task cards, on more than one page)
+PAGES = {
+    "tasks": "/",
+    "alarms": "/alarms",
+    "station": "/station",
+    "model": "/model",
+    "simulation": "/simulation",
+    "users": "/users",
+    "account": "/account",
+}
+# the kind each area's refusals are audited as (the pages' and the API's areas); a person's
+# action on the station otherwise, as the runner's own refusals are
+KINDS: dict[str, RecordKind] = {
+    "alarms": AuditKind.ALARM,
+    "model": AuditKind.MODEL,
+    "models": AuditKind.MODEL,
+    "simulation": AuditKind.EXPERIMENT,
+    "experiments": AuditKind.EXPERIMENT,
+    "users": AuditKind.USER,
+    "account": AuditKind.LOGIN,
+    "tokens": AuditKind.LOGIN,
 }
 
 
@@ -57,10 +68,8 @@ def area(path: str) -> str:
 def form_page(request: Request) -> str:
     """The page a form was sent from: the task cards' forms are on more than one page (the
     Referer, if it is this station's); the others on their area's page."""
-    found = AREAS.get(area(request.url.path))
-    if found is None or found[0] == "/":
-        return same_origin_path(request)
-    return found[0]
+    found = PAGES.get(area(request.url.path), "/")
+    return same_origin_path(request) if found == "/" else found
 
 
 def done(request: Request, to: str, message: str = "", error: str = "") -> RedirectResponse:
@@ -74,8 +83,7 @@ def record_refusal(request: Request, caller: Caller, status: int, why: str) -> N
     """`<action> refused` with why, as the caller's, in the kind of the request's area."""
     srv = server(request)
     path = request.url.path
-    found = AREAS.get(area(path))
-    kind = found[1] if found is not None else AuditKind.USER
+    kind = KINDS.get(area(path), EventKind.REFUSED)
     action = path.removeprefix("/api").strip("/").partition("/")[2] or area(path) or path
     detail = {"request": f"{request.method} {path}", "status": status, "why": why[:FLASH_CHARS]}
     entry = AuditEntry(kind, f"{action} refused", caller.name, "", detail)

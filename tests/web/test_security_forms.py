@@ -153,3 +153,16 @@ def test_refusals_at_the_gate_are_neither_redirected_nor_audited(
     )
     assert forged.status_code == 403
     assert not [r for r in records(station, "alarm") if r["subject"].endswith("refused")]
+
+
+def test_an_api_refusal_is_audited_as_refused_and_answered_in_json(
+    station: RunningStation,
+) -> None:
+    token = station.token(station.client(), "engineer")
+    api = station.client()
+    api.headers["Authorization"] = f"Bearer {token}"
+    answer = api.post("/api/alarms/acknowledge", json={"key": "resource:r9"})
+    assert answer.status_code == 404 and "detail" in answer.json()
+    [record] = [r for r in records(station, "alarm") if r["subject"].endswith("refused")]
+    assert record["subject"] == "acknowledge refused" and record["user"] == "engineer"
+    assert record["request"] == "POST /api/alarms/acknowledge" and record["status"] == 404
