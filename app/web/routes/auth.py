@@ -1,7 +1,8 @@
 """Signing in and out, and password changes (audited, throttled: app.web.sign_in).
 
-Signing in opens a session in the store (app.people.sessions); signing out ends it, and a
-password change ends every session and token of the user.  These forms check their CSRF
+Signing in opens a session in the store (app.people.sessions); signing out ends it and the
+API tokens it issued (the account page's, app.web.routes.account), and a password change
+ends every session and token of the user.  These forms check their CSRF
 token themselves (`require` does for everything else): a form that fails is shown again
 with a 403, and a sign-out without it signs nobody out.
 """
