@@ -55,6 +55,9 @@ class SealedTable:
     # a field that, once set, ends the row for good (a session revoked): a changed row may
     # still be ended (sealed again as ended: harmless), never changed otherwise
     ends: str = ""
+    # fields added to a sealed table later: sealed (with their name) only when not empty, so
+    # that the rows sealed before them keep their seals
+    later: tuple[str, ...] = ()
 
     @property
     def name(self) -> str:
@@ -75,7 +78,12 @@ class SealedTable:
     def text(self, values: Mapping[str, Any]) -> str:
         """What the seal covers; TypeError or ValueError for a value of the wrong type."""
         columns = self.table.__table__.columns
-        fields = [_canonical(columns[f].type, values[f]) for f in self.fields]
+        fields = [
+            _canonical(columns[f].type, values[f]) for f in self.fields if f not in self.later
+        ]
+        for f in self.later:
+            if values[f] not in ("", None):
+                fields.append([f, _canonical(columns[f].type, values[f])])
         seq = values.get("seq") or 0
         if not isinstance(seq, int) or isinstance(seq, bool) or seq < 0:
             raise TypeError("the counter is not a number")
@@ -127,11 +135,22 @@ USERS = SealedTable(
 SESSIONS = SealedTable(
     UserSession,
     "session rows",
-    ("id", "user_id", "kind", "created_at", "expires_at", "revoked_at", "revoked_why", "address"),
+    (
+        "id",
+        "user_id",
+        "kind",
+        "created_at",
+        "expires_at",
+        "revoked_at",
+        "revoked_why",
+        "address",
+        "issued_by",
+    ),
     "the session or API token {id:.12}...",
     urgent=True,
     deletable=True,  # sessions ended a day ago are deleted
     ends="revoked_at",
+    later=("issued_by",),  # a token's browser session: it ends with it (migration 0004)
 )
 VERSIONS = SealedTable(
     ModelVersion,

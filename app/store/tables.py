@@ -45,11 +45,17 @@ class UserSession(Base):
     revoked_at: Mapped[float | None] = mapped_column(Float, default=None)
     revoked_why: Mapped[str] = mapped_column(String(64), default="")
     address: Mapped[str] = mapped_column(String(64), default="")
+    # an API token issued from a browser session: that session's id ("" for one issued for a
+    # password, POST /api/token); the token ends when the session signs out
+    issued_by: Mapped[str] = mapped_column(String(64), default="")
     # the row's version counter and seal under the station's key (app.store.row_seals)
     seq: Mapped[int] = mapped_column(Integer, default=0)
     mac: Mapped[str] = mapped_column(String(64), default="")
 
-    __table_args__ = (Index("ix_user_sessions_user", "user_id"),)
+    __table_args__ = (
+        Index("ix_user_sessions_user", "user_id"),
+        Index("ix_user_sessions_issued_by", "issued_by"),
+    )
 
 
 class ModelVersion(Base):

@@ -31,12 +31,17 @@ async def answer(future: Future[T]) -> T:
         raise HTTPException(503, "the station did not answer in time; try again") from None
 
 
+class RunnerRefused(StationError):
+    """The runner refused a person's action (409); its `refused` event, with the user and
+    why, is in the audit log already."""
+
+
 async def perform(live: LiveStation, action: Action) -> list[Event]:
-    """Hand `action` to the runner; the events of its round, or StationError (409) with the
-    runner's reason for refusing it."""
+    """Hand `action` to the runner; the events of its round, or RunnerRefused (409) with
+    the runner's reason for refusing it."""
     acted = await answer(live.act(action))
     if not acted.reply.accepted:
-        raise StationError(str(acted.reply))
+        raise RunnerRefused(str(acted.reply))
     return list(acted.events)
 
 

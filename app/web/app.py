@@ -13,6 +13,7 @@ from fastapi.staticfiles import StaticFiles
 from starlette.middleware.sessions import SessionMiddleware
 
 from app.station.live import StationError
+from app.web.actions import RunnerRefused
 from app.web.api import alarms as api_alarms
 from app.web.api import audit as api_audit
 from app.web.api import control as api_control
@@ -30,8 +31,10 @@ from app.web.deps import (
 )
 from app.web.headers import SecurityHeaders
 from app.web.limits import BODY_BYTES
+from app.web.outcomes import AuditedRefusal, after_refusal
 from app.web.pages import values_for
 from app.web.routes import (
+    account,
     alarms,
     api_docs,
     assets,
@@ -61,6 +64,7 @@ PAGES = (
     model.router,
     audit.router,
     users.router,
+    account.router,
     alarms.router,
     assets.router,
     timeline.router,
@@ -154,7 +158,9 @@ def error_response(request: Request, status: int, message: str) -> Response:
 
 
 async def _http_error(request: Request, exc: HTTPException) -> Response:
-    return error_response(request, exc.status_code, str(exc.detail))
+    audited = isinstance(exc, AuditedRefusal)
+    back = await after_refusal(request, exc.status_code, str(exc.detail), audited)
+    return back or error_response(request, exc.status_code, str(exc.detail))
 
 
 async def _invalid(request: Request, exc: RequestValidationError) -> Response:
@@ -163,6 +169,9 @@ async def _invalid(request: Request, exc: RequestValidationError) -> Response:
         where = ".".join(str(p) for p in error.get("loc", ()) if p not in ("body", "query"))
         problems.append(f"{where}: {error.get('msg', 'invalid')}" if where else error["msg"])
     message = "; ".join(problems) or "the request is not valid"
+    back = await after_refusal(request, 422, message, audited=False)
+    if back is not None:
+        return back
     if is_api(request):
         errors = [
             {"loc": list(e.get("loc", ())), "msg": str(e.get("msg", ""))} for e in exc.errors()
@@ -172,4 +181,6 @@ async def _invalid(request: Request, exc: RequestValidationError) -> Response:
 
 
 async def _station_error(request: Request, exc: StationError) -> Response:
-    return error_response(request, 409, str(exc))
+    # the runner's own refusals are in the log already, as its `refused` events
+    back = await after_refusal(request, 409, str(exc), isinstance(exc, RunnerRefused))
+    return back or error_response(request, 409, str(exc))

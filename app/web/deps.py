@@ -183,6 +183,8 @@ def current_caller(request: Request) -> Caller | None:
                 if found is not None:
                     session.expunge_all()
         if found is None or found.row.kind != SessionKind.API or not trusted_session(srv, found):
+            # counted for the audit log per address block (app.people.failures), not written
+            srv.failures.note("bad token", client_address(request), srv.live.wall())
             raise HTTPException(
                 401, "the bearer token is invalid, expired or revoked; get a new one"
             )
@@ -222,17 +224,30 @@ class Requires:
         return f"Requires({', '.join(str(p) for p in self.permissions)})"
 
     async def __call__(self, request: Request) -> Caller:
-        # its session and user are read from the store: not on the event loop's thread,
-        # which serves every page's event stream meanwhile
-        caller = await run_in_threadpool(current_caller, request)
-        if caller is None:
-            if is_api(request):
-                raise HTTPException(401, "sign in first: POST /api/token, then send a bearer token")
-            raise LoginRequired()
-        if not any(allowed(caller.role, p) for p in self.permissions):
-            raise HTTPException(403, refusal(request, caller.role, self.permissions))
-        await check_csrf(request, caller)
-        return caller
+        return await admitted(request, self.permissions)
+
+
+async def admitted(request: Request, permissions: tuple[Permission, ...] | None) -> Caller:
+    """The caller, signed in, holding one of `permissions` (None: any signed-in caller),
+    with the CSRF token on an unsafe request; kept in `request.state.caller` for the
+    handler's refusals (app.web.outcomes: only those past this gate are audited)."""
+    # its session and user are read from the store: not on the event loop's thread,
+    # which serves every page's event stream meanwhile
+    caller = await run_in_threadpool(current_caller, request)
+    if caller is None:
+        if is_api(request):
+            raise HTTPException(401, "sign in first: POST /api/token, then send a bearer token")
+        raise LoginRequired()
+    if permissions is not None and not any(allowed(caller.role, p) for p in permissions):
+        raise HTTPException(403, refusal(request, caller.role, permissions))
+    await check_csrf(request, caller)
+    request.state.caller = caller
+    return caller
+
+
+async def signed_in(request: Request) -> Caller:
+    """A dependency: the caller, whoever they are, signed in (their own account's page)."""
+    return await admitted(request, None)
 
 
 def optional_caller(request: Request) -> Caller | None:
@@ -255,6 +270,7 @@ Activator = Annotated[Caller, Depends(Requires(Permission.ACTIVATE))]
 Simulator = Annotated[Caller, Depends(Requires(Permission.SIMULATE))]
 AuditReader = Annotated[Caller, Depends(Requires(Permission.AUDIT))]
 UserAdmin = Annotated[Caller, Depends(Requires(Permission.USERS))]
+SignedIn = Annotated[Caller, Depends(signed_in)]  # anyone signed in: their own account
 # the audit log's filter from the query string, or a 422 that says what to fix
 AuditCriteria = Annotated[Criteria, Depends(filter_dependency)]
 

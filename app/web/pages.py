@@ -18,11 +18,15 @@ from app.people.auth import Permission, allowed
 from app.web.deps import Caller, page_context, templates
 
 _PORTS = {"http": 80, "https": 443}
+FLASH = "flash"  # the session's key for what the last form came to (app.web.outcomes)
+FLASH_CHARS = 300
 
 
 def values_for(request: Request, caller: Caller | None, page: str, **extra: Any) -> dict[str, Any]:
     """The page context (app.web.deps.page_context) and what the caller may change.  A page
     built from one snapshot passes it as `view`: the whole page or fragment reads that one."""
+    if request.method == "GET" and not htmx(request) and not {"message", "error"} & extra.keys():
+        extra.update(said(request))  # what the form before this page came to, once
     found = page_context(request, caller, page, **extra)
     found["can_control"] = caller is not None and allowed(caller.role, Permission.CONTROL)
     found["can_activate"] = caller is not None and allowed(caller.role, Permission.ACTIVATE)
@@ -67,6 +71,20 @@ def live_fragment(
 
 def htmx(request: Request) -> bool:
     return bool(request.headers.get("hx-request"))
+
+
+def say(request: Request, message: str = "", error: str = "") -> None:
+    """What the next page shows once (a message, or an error): after a form, carried in the
+    session (signed by the station; never in the URL, where anyone could write it)."""
+    request.session[FLASH] = {"message": message[:FLASH_CHARS], "error": error[:FLASH_CHARS]}
+
+
+def said(request: Request) -> dict[str, str]:
+    """What the last form came to ({} if nothing), taken out of the session."""
+    found = request.session.pop(FLASH, None)
+    if not isinstance(found, dict):
+        return {}
+    return {k: v for k, v in found.items() if k in ("message", "error") and isinstance(v, str)}
 
 
 def required(text: str, what: str) -> str:

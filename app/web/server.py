@@ -10,11 +10,14 @@ from pathlib import Path
 
 from fastapi.templating import Jinja2Templates
 
+from app.people.failures import FailureLog, FailureWriter, Summary
 from app.people.sessions import ApiTokens
 from app.people.throttle import SignInThrottle
 from app.station.live import LiveStation
 from app.station.model_budget import ModelChecks
 from app.station.scenario import Scenario
+from app.store import audit
+from app.store.audit import AuditEntry, AuditKind
 from app.store.checkpoints import Checkpointer
 from app.store.db import Store
 
@@ -44,6 +47,8 @@ class Server:
     tokens: ApiTokens
     cache: Path | None
     throttle: SignInThrottle = field(default_factory=SignInThrottle)
+    # failed sign-ins and bad tokens, counted per address block for the audit log
+    failures: FailureLog = field(default_factory=FailureLog)
     # the simulation panel's experiments: id -> (title, scenario)
     experiments: dict[str, tuple[str, Scenario]] = field(default_factory=dict)
     templates: Jinja2Templates = field(
@@ -62,13 +67,24 @@ class Server:
     # models read and built in a child process within their budget (app.station.model_budget)
     models: ModelChecks = field(default_factory=ModelChecks)
 
+    def __post_init__(self) -> None:
+        self.failure_writer = FailureWriter(self.failures, self.write_failures)
+
     def start(self) -> None:
-        """The station loop and the audit checkpoints (the web app is served by the caller)."""
+        """The station loop, the audit checkpoints and the failures' summaries (the web app
+        is served by the caller)."""
         self.live.start()
         if self.checkpoints is not None:
             self.checkpoints.start()
+        self.failure_writer.start()
 
     def stop(self) -> None:
+        self.failure_writer.stop()
         self.live.stop()
         if self.checkpoints is not None:
             self.checkpoints.stop()
+
+    def write_failures(self, found: list[Summary]) -> None:
+        """Summaries of failed sign-ins and bad tokens into the audit log, one per block."""
+        entries = [AuditEntry(AuditKind.LOGIN, s.subject, s.user, "", s.detail()) for s in found]
+        audit.write(self.store, self.live.name, entries, self.live.wall())

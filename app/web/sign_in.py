@@ -5,7 +5,9 @@ A sign-in reserves an attempt with the throttle (app.people.throttle) before its
 checked, checks an unknown name against a dummy hash (the answer takes as long either way),
 and holds no database connection while argon2 works or while the audit record is written,
 so that a crowd of failed sign-ins can neither exhaust the connection pool nor stall anyone
-else's request.  Signing in opens a session in the store (app.people.sessions).
+else's request.  A failure is only counted (app.people.failures): the audit log gets one
+record per window and address block, written by a thread of its own.  Signing in opens a
+session in the store (app.people.sessions).
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ from app.people.auth import dummy_hash, password_matches, user_named
 from app.people.sessions import SessionKind
 from app.people.throttle import Refused
 from app.store import audit
-from app.store.audit import AuditEntry, AuditKind, RecordKind
+from app.store.audit import AuditEntry, AuditKind
 from app.store.tables import User
 from app.web.deps import trusted_user
 from app.web.limits import USER_CHARS
@@ -27,25 +29,12 @@ from app.web.server import Server
 CHECK_WAIT = 10.0  # seconds a sign-in waits for a free password check before "busy"
 
 
-def record(srv: Server, kind: RecordKind, subject: str, user: str, **detail: object) -> None:
-    entry = AuditEntry(kind, subject, user, "", detail)
-    audit.write(srv.store, srv.live.name, [entry], srv.live.wall())
-
-
 def check_password(srv: Server, address: str, name: str, password: str) -> User:
     """The user whose password this is, or an HTTPException: 401 (wrong, unknown, disabled
     or tampered: the same answer), 429 (throttled), 503 (too many checks at once)."""
     attempt = srv.throttle.begin(name, address)
-    if isinstance(attempt, Refused):
-        if attempt.audit:
-            record(
-                srv,
-                AuditKind.LOGIN,
-                "throttled",
-                name[:USER_CHARS],
-                address=address,
-                **_unaudited(attempt),
-            )
+    if isinstance(attempt, Refused):  # counted, not written now: one record per window
+        srv.failures.note("throttled", address, srv.live.wall(), name=name[:USER_CHARS])
         raise HTTPException(
             429, f"too many failed sign-ins; try again in {int(attempt.wait) + 1} s"
         )
@@ -70,13 +59,10 @@ def check_password(srv: Server, address: str, name: str, password: str) -> User:
     finally:
         srv.throttle.end(attempt, user is not None)
     if user is None:
-        record(srv, AuditKind.LOGIN, "failed", name[:USER_CHARS], address=address, why=why)
+        real = found.name if found is not None else ""  # a typed name is no user's name
+        srv.failures.note("failed", address, srv.live.wall(), real, name=name, why=why)
         raise HTTPException(401, "wrong user name or password")
     return user
-
-
-def _unaudited(refused: Refused) -> dict[str, int]:
-    return {"not_audited_since": refused.unaudited} if refused.unaudited else {}
 
 
 def open_session(srv: Server, user: User, kind: SessionKind, address: str) -> str:

@@ -8,7 +8,8 @@ route without one fails `test_every_route_has_an_expected_access`, so none escap
 Each row says what a caller may send without changing the station: names that do not
 exist, a password too short, an empty model, so that a caller who may use the route is
 refused after the permission check (404, 409, 422, with the handler's own message, which
-`says` checks) and one who may not gets the permission's 403.  The API is called with the
+`says` checks; a page's form is answered 303 to its page, which says it) and one who may
+not gets the permission's 403.  The API is called with the
 session cookie and with a bearer token.  Every unsafe request of a session must also carry
 its CSRF token.  One station serves the whole module; only sign-outs use clients of their
 own.
@@ -124,6 +125,26 @@ ROUTES = [
         reached=422,
         says="at least 10 characters",
     ),
+    # one's own account: API tokens issued from this session, listed, revoked one by one
+    Route("GET", "/account", SIGNED_IN, says="API tokens"),
+    Route("POST", "/account/tokens", SIGNED_IN, reached=303, says="new API token is issued"),
+    Route(
+        "POST",
+        "/account/tokens/revoke",
+        SIGNED_IN,
+        form={"token": "0" * 16},
+        reached=303,
+        says="no live API token",
+    ),
+    Route("GET", "/api/tokens", SIGNED_IN, says='"from_session"'),
+    Route(
+        "DELETE",
+        "/api/tokens/{token_id}",
+        SIGNED_IN,
+        url="/api/tokens/" + "0" * 16,
+        reached=404,
+        says="no live API token",
+    ),
     # the stream tells a page whose user is signed out to go to /login (EventSource
     # cannot follow a redirect usefully)
     Route(
@@ -145,7 +166,7 @@ ROUTES = [
         "/tasks/done",
         needs(TASKS),
         form={"card": "no-such-card"},
-        reached=409,
+        reached=303,
         says="no longer shown",
     ),
     Route(
@@ -153,7 +174,7 @@ ROUTES = [
         "/tasks/maintenance",
         needs(TASKS),
         form={"transition": "no.such_step"},
-        reached=404,
+        reached=303,
         says="there is no maintenance transition",
     ),
     Route(
@@ -161,7 +182,7 @@ ROUTES = [
         "/tasks/approve",
         needs(TASKS),
         form={"step": "9999"},
-        reached=409,
+        reached=303,
         says="no such recovery step",
     ),
     Route("GET", "/alarms", needs(ALARMS), says="<h1"),
@@ -171,7 +192,7 @@ ROUTES = [
         "/alarms/acknowledge",
         needs(ACKNOWLEDGE),
         form=ABSENT_ALARM,
-        reached=409,
+        reached=303,
         says=NO_ALARM,
     ),
     Route(
@@ -179,7 +200,7 @@ ROUTES = [
         "/alarms/acknowledge-all",
         needs(ACKNOWLEDGE),
         form={"keys": ABSENT_ALARM["key"]},
-        reached=409,
+        reached=303,
         says="nothing to acknowledge: no alarm",
     ),
     Route(
@@ -187,7 +208,7 @@ ROUTES = [
         "/alarms/shelve",
         needs(ACKNOWLEDGE),
         form={**ABSENT_ALARM, "minutes": "5"},
-        reached=409,
+        reached=303,
         says=NO_ALARM,
     ),
     Route(
@@ -195,7 +216,7 @@ ROUTES = [
         "/alarms/unshelve",
         needs(ACKNOWLEDGE),
         form=ABSENT_ALARM,
-        reached=409,
+        reached=303,
         says=NO_ALARM,
     ),
     # the engineer's pages: station view, controls, model editor, simulation panel
@@ -212,7 +233,7 @@ ROUTES = [
         "/station/intentions/start",
         needs(CONTROL),
         form={"name": "no_such_intention"},
-        reached=404,
+        reached=303,
         says="there is no intention",
     ),
     Route(
@@ -220,7 +241,7 @@ ROUTES = [
         "/station/intentions/cancel",
         needs(CONTROL),
         form={"name": "no_such_intention"},
-        reached=404,
+        reached=303,
         says="there is no intention",
     ),
     Route(
@@ -228,7 +249,7 @@ ROUTES = [
         "/station/restart/enter",
         needs(CONTROL),
         form={"reason": ""},
-        reached=422,
+        reached=303,
         says="a reason for restart mode is required",
     ),
     # leaving restart mode outside it changes nothing (the runner accepts it)
@@ -238,7 +259,7 @@ ROUTES = [
         "/station/operations/reset",
         needs(CONTROL),
         form={"name": "no_such_operation"},
-        reached=404,
+        reached=303,
         says="there is no operation",
     ),
     Route(
@@ -246,7 +267,7 @@ ROUTES = [
         "/station/effects/reenable",
         needs(CONTROL),
         form={"name": "no.such_effect"},
-        reached=404,
+        reached=303,
         says="there is no effect transition",
     ),
     Route(
@@ -254,7 +275,7 @@ ROUTES = [
         "/station/variables/set",
         needs(CONTROL),
         form={"variable": "no.such_variable", "value": "x", "reason": "probe"},
-        reached=404,
+        reached=303,
         says="there is no estimated or decision variable",
     ),
     Route("GET", "/model", needs(MODEL), says='id="model-text"'),
@@ -273,7 +294,7 @@ ROUTES = [
         "/model/activate",
         needs(ACTIVATE),
         form={"version": "1"},
-        reached=409,
+        reached=303,
         says="already active",
     ),
     Route("GET", "/model/fragments/station", needs(MODEL)),
@@ -284,7 +305,7 @@ ROUTES = [
         "/simulation/experiment",
         needs(SIMULATE),
         form={"experiment": "no_such_experiment"},
-        reached=404,
+        reached=303,
         says="there is no experiment",
     ),
     # the audit log, users
@@ -296,7 +317,7 @@ ROUTES = [
         "/users",
         needs(USERS),
         form={"name": "probe", "role": "operator", "password": "short"},
-        reached=422,
+        reached=303,
         says="at least 10 characters",
     ),
     Route(
@@ -304,7 +325,7 @@ ROUTES = [
         "/users/disable",
         needs(USERS),
         form={"name": "no-such-user", "disabled": "true"},
-        reached=404,
+        reached=303,
         says="there is no user",
     ),
     Route(
@@ -312,7 +333,7 @@ ROUTES = [
         "/users/password",
         needs(USERS),
         form={"name": "no-such-user", "password": "long-enough-pw-1"},
-        reached=404,
+        reached=303,
         says="there is no user",
     ),
     Route(
@@ -320,7 +341,7 @@ ROUTES = [
         "/users/role",
         needs(USERS),
         form={"name": "no-such-user", "role": "operator"},
-        reached=404,
+        reached=303,
         says="there is no user",
     ),
     # the JSON API; the station's state is also what an operator's line system reads
@@ -575,10 +596,12 @@ def send(station: RunningStation, route: Route, caller: Caller, bearer: bool) ->
     elif route.signs_out and caller.name != "anonymous":
         client = station.client()
         headers["X-CSRF-Token"] = station.login(client, caller.name)
-    elif route.method == "POST":
+    elif route.method in ("POST", "DELETE"):
         headers["X-CSRF-Token"] = caller.csrf
     if route.method == "GET":
         response = client.get(route.target, headers=headers, follow_redirects=False)
+    elif route.method == "DELETE":
+        response = client.delete(route.target, headers=headers, follow_redirects=False)
     elif route.api:
         response = client.post(
             route.target, json=route.json, headers=headers, follow_redirects=False
@@ -587,6 +610,11 @@ def send(station: RunningStation, route: Route, caller: Caller, bearer: bool) ->
         form = {k: own(v, caller) for k, v in route.form.items()}
         form["csrf_token"] = headers.pop("X-CSRF-Token", "")
         response = client.post(route.target, data=form, headers=headers, follow_redirects=False)
+        location = response.headers.get("location", "")
+        if response.status_code == 303 and not location.startswith("/login"):
+            # a form's outcome, refused or done, is shown by the page it redirects to
+            shown = client.get(location, headers=headers, follow_redirects=False)
+            return Answer(303, shown.text, location)
     return Answer(response.status_code, response.text, response.headers.get("location", ""))
 
 
@@ -660,7 +688,7 @@ def test_a_route_admits_exactly_whom_its_permissions_admit(
     )
 
 
-UNSAFE = [r for r in ROUTES if r.method == "POST" and r.needs != PUBLIC]
+UNSAFE = [r for r in ROUTES if r.method in ("POST", "DELETE") and r.needs != PUBLIC]
 
 
 @pytest.mark.parametrize("route", UNSAFE, ids=str)
@@ -672,7 +700,9 @@ def test_a_session_without_the_csrf_token_is_refused(
     client = station.client() if route.signs_out else callers["admin"].client
     if route.signs_out:
         station.login(client, "admin")
-    if route.api:
+    if route.method == "DELETE":
+        response = client.delete(route.target, follow_redirects=False)
+    elif route.api:
         response = client.post(route.target, json=route.json, follow_redirects=False)
     else:
         response = client.post(route.target, data=route.form, follow_redirects=False)

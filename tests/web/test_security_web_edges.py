@@ -343,7 +343,9 @@ def test_numbers_too_large_for_the_database_are_a_4xx_with_a_message(
             client.post("/model/activate", data={"csrf_token": token, "version": huge}),
             client.post("/model/activate", data={"csrf_token": token, "version": huge}, headers=HX),
         ):
-            assert answer.status_code == 422, (answer.request.url, answer.text)
+            # a plain form's refusal is said by the page it redirects to (followed)
+            plain = bool(answer.history)
+            assert answer.status_code == (200 if plain else 422), (answer.request.url, answer.text)
             assert "version" in answer.text and "less than or equal to" in answer.text
     assert client.get("/model", params={"version": 999_999_999}).status_code == 404
     assert client.get("/audit", params={"page": HUGE}).status_code == 200  # the last page
@@ -352,7 +354,7 @@ def test_numbers_too_large_for_the_database_are_a_4xx_with_a_message(
     operator = station.client()
     operator_token = station.login(operator, "operator")
     refused = operator.post("/tasks/approve", data={"csrf_token": operator_token, "step": HUGE})
-    assert refused.status_code == 422
+    assert refused.status_code == 200 and "less than or equal to" in refused.text
 
 
 # ---- 3. security headers -------------------------------------------------------------------------

@@ -95,10 +95,17 @@ def test_acknowledge_all_answers_the_alarms_shown_with_one_note_each_audited(
     }
     assert len({r.time for r in records}) == 1, "acknowledged in one round"
 
-    again = client.post("/alarms/acknowledge-all", data=form)
-    assert again.status_code == 409 and "nothing to acknowledge" in again.text
+    # a plain form refused: back to the page, which says why; audited as refused
+    again = client.post("/alarms/acknowledge-all", data=form, follow_redirects=False)
+    assert (again.status_code, again.headers["location"]) == (303, "/alarms")
+    assert "nothing to acknowledge" in client.get("/alarms").text
     missing = client.post("/alarms/acknowledge-all", data={"csrf_token": token})
-    assert missing.status_code == 422
+    assert missing.status_code == 200 and "keys: Field required" in missing.text
+    refused = [r for r in alarm_records(station) if r.subject == "acknowledge-all refused"]
+    assert [(r.user, json.loads(r.detail)["status"]) for r in refused] == [
+        ("operator", 409),
+        ("operator", 422),
+    ]
 
 
 def test_the_badge_counts_what_waits_when_drawn_and_every_change_is_announced(

@@ -1,15 +1,20 @@
 """A bearer token for the API (`POST /api/token`): the sign-in of line systems (MES) and
-scripts, checked and throttled as the sign-in form is (app.web.sign_in)."""
+scripts, checked and throttled as the sign-in form is (app.web.sign_in); and the caller's
+own tokens, listed (`GET /api/tokens`) and revoked one by one (`DELETE /api/tokens/{id}`),
+as on their account page (app.web.tokens)."""
 
 from __future__ import annotations
 
-from fastapi import APIRouter, HTTPException, Request
+from typing import Annotated
+
+from fastapi import APIRouter, Depends, HTTPException, Path, Request
 from pydantic import BaseModel, Field
 
-from app.people.sessions import SessionKind
-from app.web.api.common import PREFIX
+from app.people.sessions import HANDLE_CHARS, SessionKind
+from app.web import tokens
+from app.web.api.common import PREFIX, bearer, errors
 from app.web.api.schemas import Invalid, Message
-from app.web.deps import ServerDep, client_address
+from app.web.deps import ServerDep, SignedIn, client_address
 from app.web.limits import PASSWORD_CHARS, USER_CHARS
 from app.web.sign_in import check_password, open_session
 
@@ -46,3 +51,44 @@ def api_token(request: Request, srv: ServerDep, body: TokenRequest) -> TokenAnsw
         raise HTTPException(403, "change the first-login password in the browser first")
     secret = open_session(srv, user, SessionKind.API, client_address(request))
     return TokenAnswer(token=srv.tokens.issue(user, secret), role=user.role)
+
+
+class TokenShown(BaseModel):
+    """A live API token of the caller's (never its secret)."""
+
+    id: str = Field(description="the token's id, to revoke it by")
+    issued_at: float = Field(description="seconds since the epoch (UTC)")
+    expires_at: float
+    address: str = Field(description="the address it was issued to")
+    from_session: str = Field(
+        description="'this session', 'another session' (a browser session it ends with), "
+        "or '' (issued for a password)"
+    )
+
+
+TokenId = Annotated[
+    str, Path(min_length=HANDLE_CHARS, max_length=HANDLE_CHARS, description="a token's id")
+]
+
+
+@router.get("/tokens", dependencies=[Depends(bearer)], responses=errors(401))
+def list_tokens(request: Request, caller: SignedIn, srv: ServerDep) -> list[TokenShown]:
+    """The caller's live API tokens, newest first."""
+    current = "" if caller.bearer else str(request.session.get("sid", ""))
+    return [
+        TokenShown(
+            id=t.handle,
+            issued_at=t.issued_at,
+            expires_at=t.expires_at,
+            address=t.address,
+            from_session=t.from_session,
+        )
+        for t in tokens.listed(srv, caller, current)
+    ]
+
+
+@router.delete("/tokens/{token_id}", dependencies=[Depends(bearer)], responses=errors(401, 404))
+def revoke_token(caller: SignedIn, srv: ServerDep, token_id: TokenId) -> Message:
+    """End one of the caller's own tokens (the one this request carries, too)."""
+    tokens.revoke(srv, caller, token_id)
+    return Message(detail="revoked")

@@ -23,6 +23,7 @@ from app.station.live import LiveStation
 from app.web.actions import answer
 from app.web.deps import Acknowledger, AlarmViewer, Caller, LiveDep, OptionalCaller
 from app.web.limits import KEY_CHARS, MOST_KEYS, NOTE_CHARS, SHELVE_MINUTES
+from app.web.outcomes import done
 from app.web.pages import htmx, render
 
 router = APIRouter(include_in_schema=False)
@@ -153,7 +154,7 @@ async def acknowledge(
     request: Request, caller: Acknowledger, live: LiveDep, key: Key, note: Note = ""
 ) -> Response:
     await answer(live.acknowledge(key, caller.name, note.strip()))
-    return _back(request, caller, live)
+    return _back(request, caller, live, "Acknowledged.")
 
 
 @router.post("/alarms/acknowledge-all")
@@ -168,8 +169,8 @@ async def acknowledge_all(
     that arrived after the page was drawn is not acknowledged unseen."""
     if any(len(key) > KEY_CHARS for key in keys):
         raise HTTPException(422, f"keys: an alarm's key has at most {KEY_CHARS} characters")
-    await answer(live.acknowledge_all(keys, caller.name, note.strip()))
-    return _back(request, caller, live)
+    changed = await answer(live.acknowledge_all(keys, caller.name, note.strip()))
+    return _back(request, caller, live, f"Acknowledged {len(changed)}.")
 
 
 @router.post("/alarms/shelve")
@@ -182,17 +183,18 @@ async def shelve(
     note: Note = "",
 ) -> Response:
     await answer(live.shelve(key, caller.name, minutes, note.strip()))
-    return _back(request, caller, live)
+    return _back(request, caller, live, f"Shelved for {minutes:g} min.")
 
 
 @router.post("/alarms/unshelve")
 async def unshelve(request: Request, caller: Acknowledger, live: LiveDep, key: Key) -> Response:
     await answer(live.unshelve(key, caller.name))
-    return _back(request, caller, live)
+    return _back(request, caller, live, "Unshelved.")
 
 
-def _back(request: Request, caller: Caller, live: LiveStation) -> Response:
-    """After a form: htmx gets the refreshed list (and badge), a plain browser a redirect."""
+def _back(request: Request, caller: Caller, live: LiveStation, message: str = "") -> Response:
+    """After a form: htmx gets the refreshed list (and badge), a plain browser a redirect
+    to the page, which says `message` once."""
     if htmx(request):
         return alarms_page(request, "_alarms.html", caller, live, fragment=True, acted=True)
-    return RedirectResponse("/alarms", status_code=303)
+    return done(request, "/alarms", message)

@@ -19,12 +19,13 @@ from typing import Any
 
 from fastapi import APIRouter, HTTPException, Request
 from fastapi.responses import Response, StreamingResponse
+from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.store import audit
 from app.store.audit import AuditEntry, AuditKind
 from app.store.db import Store
-from app.store.tables import AuditRecord
+from app.store.tables import AuditRecord, User
 from app.web.audit_log import (
     LIMITS,
     SHOWN,
@@ -135,11 +136,11 @@ def _switch(chosen: Criteria, current: str) -> list[Switch]:
 
 
 def _choices(session: Session, given: dict[str, str]) -> dict[str, list[str]]:
-    """The selects' choices: the values in the log, and a chosen one even if absent."""
-    return {
-        column: _with(audit.distinct_values(session, column), given.get(column, ""))
-        for column in ("user", "kind", "resource", "station")
-    }
+    """The selects' choices: the values in the log (the users: the station's users, not
+    every name someone typed at the sign-in form), and a chosen one even if absent."""
+    found = {c: audit.distinct_values(session, c) for c in ("kind", "resource", "station")}
+    found["user"] = list(session.scalars(select(User.name).order_by(User.name)))
+    return {column: _with(values, given.get(column, "")) for column, values in found.items()}
 
 
 def _with(values: list[str], chosen: str) -> list[str]:

@@ -1,9 +1,10 @@
 """Signing in and out, and password changes (audited, throttled: app.web.sign_in).
 
-Signing in opens a session in the store (app.people.sessions); signing out ends it, and a
-password change ends every session and token of the user.  These forms check their CSRF
-token themselves (`Requires` does for everything else): a form that fails is shown again
-with a 403, and a sign-out without it signs nobody out.
+Signing in opens a session in the store (app.people.sessions); signing out ends it and the
+API tokens it issued (the account page's, app.web.routes.account), and a password change
+ends every session and token of the user.  These forms check their CSRF token themselves
+(`Requires` does for everything else): a form that fails is shown again with a 403, and a
+sign-out without it signs nobody out.
 """
 
 from __future__ import annotations
@@ -77,11 +78,15 @@ def logout(request: Request, srv: ServerDep, csrf_token_field: FormToken = "") -
     if found is not None and csrf_token_field == request.session.get("csrf"):
         secret = str(request.session.get("sid"))
 
-        def end(session: Session) -> None:
-            user_sessions.revoke(session, secret, "signed out", srv.live.wall())
+        def end(session: Session) -> int:
+            # the API tokens this session issued end with it (app.people.sessions)
+            return user_sessions.revoke(session, secret, "signed out", srv.live.wall())
 
-        entry = AuditEntry(AuditKind.LOGIN, "signed out", found.user.name)
-        audit.write(srv.store, srv.live.name, [entry], srv.live.wall(), also=end)
+        def entries(tokens: int | None) -> list[AuditEntry]:
+            detail = {"tokens_ended": tokens} if tokens else {}
+            return [AuditEntry(AuditKind.LOGIN, "signed out", found.user.name, "", detail)]
+
+        audit.write(srv.store, srv.live.name, entries, srv.live.wall(), also=end)
         request.session.clear()
     return RedirectResponse("/login", status_code=303)
 

@@ -12,11 +12,12 @@ from __future__ import annotations
 from typing import Annotated
 
 from fastapi import APIRouter, Form, Request
-from fastapi.responses import RedirectResponse, Response
+from fastapi.responses import Response
 
 from app.pages import station_rows
 from app.station.live import LiveStation
 from app.station.view import StationView
+from app.web import outcomes
 from app.web.actions import effect_name, estimated_value, intention_name, operation_name, perform
 from app.web.deps import Caller, Controller, LiveDep
 from app.web.limits import CONFIRM_CHARS, NAME_CHARS, NOTE_CHARS, VALUE_CHARS
@@ -54,7 +55,7 @@ async def control(
     browser a redirect back to the page it came from."""
     await perform(live, action)
     if not htmx(request):
-        return RedirectResponse("/station", status_code=303)
+        return outcomes.done(request, "/station", done)
     if request.headers.get("hx-target") == "station-overview":  # a Start or Cancel there
         return overview_fragment(request, caller, live.view, done)
     view = live.view
@@ -153,10 +154,10 @@ async def set_variable(
             **context,
         )
     await perform(live, SetEstimated(user=caller.name, variable=name, value=chosen, reason=why))
-    if not htmx(request):
-        return RedirectResponse(f"/station/details?variable={name}", status_code=303)
     view = live.view
     done = f"{sentence(view.model.words.value(name, view.state.values[name]))}: set."
+    if not htmx(request):
+        return outcomes.done(request, f"/station/details?variable={name}", done)
     context = {**variables_context(view), **set_form_context(view, name), "set_form_oob": True}
     return render(
         request, "_station_variables.html", caller, "station", view=view, flash=done, **context

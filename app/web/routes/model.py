@@ -10,10 +10,10 @@ from datetime import datetime
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Form, Query, Request
-from fastapi.responses import RedirectResponse, Response
+from fastapi.responses import Response
 
 from app.store import versions
-from app.web import model_editing
+from app.web import model_editing, outcomes
 from app.web.deps import Activator, Caller, LiveDep, ModelEditor, ServerDep
 from app.web.limits import (
     MAX_MODEL_CHARS,
@@ -129,7 +129,8 @@ def save_model(
             flash_error=message,
         )
     if not htmx(request):
-        return RedirectResponse(f"/model?version={row.number}", status_code=303)
+        saved = f"Saved as version {row.number}; activate it to run it."
+        return outcomes.done(request, f"/model?version={row.number}", saved)
     return render(
         request,
         "_model_versions.html",
@@ -172,7 +173,7 @@ async def activate_model(
 ) -> Response:
     await model_editing.activate(srv, version, caller.name)
     if not htmx(request):
-        return RedirectResponse("/model", status_code=303)
+        return outcomes.done(request, "/model", f"Version {version} is active now.")
     return render(
         request,
         "_model_versions.html",

@@ -21,6 +21,7 @@ from app.pages.cards import station_activity, task_cards
 from app.people.auth import Role
 from app.station.live import LiveStation, StationError
 from app.station.view import StationView
+from app.web import outcomes
 from app.web.actions import answer, maintenance_step, perform
 from app.web.deps import Caller, LiveDep, OptionalCaller, StoreDep, TasksCaller
 from app.web.limits import CARD_CHARS, MAX_STEP, NAME_CHARS
@@ -40,11 +41,12 @@ def card_context(view: StationView) -> dict[str, Any]:
 def back(
     request: Request, caller: Caller, live: LiveStation, fragment: str, stale: str = ""
 ) -> Response:
-    """After a form: htmx gets the refreshed fragment, a plain browser a redirect."""
+    """After a form: htmx gets the refreshed fragment, a plain browser a redirect to the
+    page the form was on, which says it once."""
     if htmx(request):
         shown = card_context(live.view)
         return render(request, fragment, caller, "tasks", stale=stale, **shown)
-    return RedirectResponse(same_origin_path(request), status_code=303)
+    return outcomes.done(request, same_origin_path(request), "Done.")
 
 
 async def tap(

@@ -7,7 +7,7 @@ from __future__ import annotations
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Form, HTTPException, Request
-from fastapi.responses import RedirectResponse, Response
+from fastapi.responses import Response
 
 from app.pages import station_rows
 from app.pages.cards import task_cards
@@ -15,6 +15,7 @@ from app.station.cycle import ScheduledFault
 from app.station.live import LiveStation
 from app.station.scenario import Scenario
 from app.station.view import StationView
+from app.web import outcomes
 from app.web.actions import answer, known
 from app.web.deps import ServerDep, Simulator
 from app.web.limits import NAME_CHARS
@@ -109,15 +110,16 @@ async def play_experiment(
     key = known(experiment.strip(), sorted(srv.experiments), "experiment")
     title, scenario = srv.experiments[key]
     await answer(srv.live.play_experiment(scenario, title, caller.name))
-    if not htmx(request):
-        return RedirectResponse("/simulation", status_code=303)
     view = srv.live.view
+    started = f"{view.model.words.text(title)}: started. Watch the station and the tasks pages."
+    if not htmx(request):
+        return outcomes.done(request, "/simulation", started)
     return render(
         request,
         "_simulation_status.html",
         caller,
         "simulation",
         view=view,
-        flash=f"{view.model.words.text(title)}: started. Watch the station and the tasks pages.",
+        flash=started,
         **simulation_status(srv.experiments, view),
     )

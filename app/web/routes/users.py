@@ -11,7 +11,7 @@ import re
 from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import UTC, datetime
-from typing import Annotated, Any
+from typing import Annotated, Any, NoReturn
 
 from fastapi import APIRouter, Form, HTTPException, Request
 from fastapi.responses import RedirectResponse, Response
@@ -32,14 +32,15 @@ from app.store import audit
 from app.store.audit import AuditEntry, AuditKind
 from app.store.seals import TamperedUser
 from app.store.tables import AuditRecord, User
+from app.web import outcomes
 from app.web.deps import Caller, ServerDep, UserAdmin
 from app.web.limits import PASSWORD_CHARS, ROLE_CHARS, USER_CHARS
+from app.web.outcomes import AuditedRefusal
 from app.web.pages import render
 from app.web.server import Server
 
 router = APIRouter(include_in_schema=False)
 NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_.-]{0,63}$")
-FLASH = "users_message"  # what a change said, shown once on the page it redirects to
 UserName = Annotated[str, Form(max_length=USER_CHARS)]
 Password = Annotated[str, Form(max_length=PASSWORD_CHARS)]
 RoleName = Annotated[str, Form(max_length=ROLE_CHARS)]
@@ -105,10 +106,6 @@ def _page(
 ) -> Response:
     with srv.store.sessions() as session:
         users = user_rows(session)
-    if "message" not in extra and "error" not in extra:
-        said = request.session.pop(FLASH, None)
-        if isinstance(said, str):
-            extra["message"] = said
     return render(
         request,
         "users.html",
@@ -123,24 +120,23 @@ def _page(
 
 def _done(request: Request, message: str) -> Response:
     """After a change: back to the page by a redirect (a reload does not send the form
-    again), the message carried over in the session."""
-    request.session[FLASH] = message
-    return RedirectResponse("/users", status_code=303)
+    again), the message carried over in the session (app.web.outcomes)."""
+    return outcomes.done(request, "/users", message)
 
 
 def _refused(
-    request: Request,
     caller: Caller,
     srv: Server,
     what: str,
     detail: dict[str, object],
     status_code: int,
     why: str,
-) -> Response:
-    """A change refused: audited as refused, with why (never as done), and the page says so."""
+) -> NoReturn:
+    """A change refused: audited as refused, with why (never as done); back to the page by a
+    redirect too, which says why (htmx gets the error where it shows them)."""
     entry = AuditEntry(AuditKind.USER, f"{what} refused", caller.name, "", {**detail, "why": why})
     audit.write(srv.store, srv.live.name, [entry], srv.live.wall())
-    return _page(request, caller, srv, status_code, error=why)
+    raise AuditedRefusal(status_code, why)
 
 
 @router.get("/users")
@@ -167,7 +163,7 @@ def add(
         problem = password_problem(name, password)
     detail: dict[str, object] = {"name": name, "role": role}
     if problem:
-        return _refused(request, caller, srv, "add", detail, 422, problem)
+        return _refused(caller, srv, "add", detail, 422, problem)
 
     def added(session: Session) -> bool:
         if user_named(session, name) is not None:
@@ -184,7 +180,7 @@ def add(
         done = False
     if not done:
         why = f"there is already a user '{name}'"
-        return _refused(request, caller, srv, "add", detail, 409, why)
+        return _refused(caller, srv, "add", detail, 409, why)
     return _done(request, f"Added {name} ({role}); they choose a password at first sign-in")
 
 
@@ -198,9 +194,7 @@ def disable(
 ) -> Response:
     subject = "disabled" if disabled else "enabled"
     if name == caller.name:
-        return _refused(
-            request, caller, srv, subject, {"name": name}, 409, "you cannot disable yourself"
-        )
+        return _refused(caller, srv, subject, {"name": name}, 409, "you cannot disable yourself")
     now = srv.live.wall()
     detail: dict[str, object] = {"name": name}
 
@@ -226,10 +220,10 @@ def reset_password(
     next sign-in, and whatever they were signed in with ends now."""
     if name == caller.name:
         why = "change your own password with Change password (/password)"
-        return _refused(request, caller, srv, "password reset", {"name": name}, 409, why)
+        return _refused(caller, srv, "password reset", {"name": name}, 409, why)
     problem = password_problem(name, password)
     if problem:
-        return _refused(request, caller, srv, "password reset", {"name": name}, 422, problem)
+        return _refused(caller, srv, "password reset", {"name": name}, 422, problem)
     now = srv.live.wall()
     detail: dict[str, object] = {"name": name}
 
@@ -256,7 +250,7 @@ def change_role(
     users any more); an admin who does step down is signed out with the rest."""
     if role not in ROLES:
         why = f"unknown role '{role}'; use one of {', '.join(ROLES)}"
-        return _refused(request, caller, srv, "role change", {"name": name, "role": role}, 422, why)
+        return _refused(caller, srv, "role change", {"name": name, "role": role}, 422, why)
     now = srv.live.wall()
     detail: dict[str, object] = {"name": name, "role": role}
 
@@ -305,6 +299,5 @@ def _write(srv: Server, entry: AuditEntry, now: float, change: Callable[[Session
         detail = {**entry.detail, "why": why}
         refused = AuditEntry(entry.kind, f"{entry.subject} refused", entry.user, "", detail)
         audit.write(srv.store, srv.live.name, [refused], now)
-        if isinstance(exc, HTTPException):
-            raise
-        raise HTTPException(409, why) from None
+        status = exc.status_code if isinstance(exc, HTTPException) else 409
+        raise AuditedRefusal(status, why) from None
