@@ -211,7 +211,8 @@ async def check_csrf(request: Request, caller: Caller) -> None:
 
 
 class Requires:
-    """A dependency: the caller, who must be signed in and hold one of `permissions`.
+    """A dependency: the caller, who must be signed in and hold one of `permissions` (with
+    none, any signed-in caller: their own account's pages).
 
     Routes depend on instances of it (the aliases below), so what each route requires can be
     read from the app's routes (each route's dependencies), not only tried by sending
@@ -224,7 +225,7 @@ class Requires:
         return f"Requires({', '.join(str(p) for p in self.permissions)})"
 
     async def __call__(self, request: Request) -> Caller:
-        return await admitted(request, self.permissions)
+        return await admitted(request, self.permissions or None)
 
 
 async def admitted(request: Request, permissions: tuple[Permission, ...] | None) -> Caller:
@@ -243,11 +244,6 @@ async def admitted(request: Request, permissions: tuple[Permission, ...] | None)
     await check_csrf(request, caller)
     request.state.caller = caller
     return caller
-
-
-async def signed_in(request: Request) -> Caller:
-    """A dependency: the caller, whoever they are, signed in (their own account's page)."""
-    return await admitted(request, None)
 
 
 def optional_caller(request: Request) -> Caller | None:
@@ -270,7 +266,7 @@ Activator = Annotated[Caller, Depends(Requires(Permission.ACTIVATE))]
 Simulator = Annotated[Caller, Depends(Requires(Permission.SIMULATE))]
 AuditReader = Annotated[Caller, Depends(Requires(Permission.AUDIT))]
 UserAdmin = Annotated[Caller, Depends(Requires(Permission.USERS))]
-SignedIn = Annotated[Caller, Depends(signed_in)]  # anyone signed in: their own account
+SignedIn = Annotated[Caller, Depends(Requires())]  # anyone signed in: their own account
 # the audit log's filter from the query string, or a 422 that says what to fix
 AuditCriteria = Annotated[Criteria, Depends(filter_dependency)]
 

@@ -42,9 +42,10 @@ MAX_ALIAS_NODES = 100_000
 """Nodes that aliases may add to a model beyond those written out in its text: ten anchors
 of ten aliases each stand for 10^10 nodes, which reading would walk one by one."""
 MAX_MODEL_TERMS = 2_000_000
-"""Nodes all of a model's expressions may have with the predicates they name written out
-(each alone at most `MAX_TERMS`): what reading copies and the planners walk, linear in it.
-The demo station has some 1,800; a 1.5 MB station of 560 cells some 70,000."""
+"""Distinct nodes all of a model's expressions may hold (each alone stands for at most
+`MAX_TERMS` written out): what reading keeps in memory.  A predicate named by a thousand
+guards is held once.  The demo station has some 1,800; a 1.5 MB station of 560 cells some
+70,000."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -78,7 +79,7 @@ class Reader:
         self.text = text
         self.file = file
         self.diagnostics: list[Diagnostic] = []
-        self.terms = 0  # nodes of the expressions read so far, written out (`MAX_MODEL_TERMS`)
+        self.terms = 0  # distinct nodes of the expressions read so far (`MAX_MODEL_TERMS`)
         self.sizes: dict[int, tuple[Expr, int]] = {}  # `size`'s memory, shared by them all
 
     def at(self, node: yaml.Node) -> SourceLocation:
@@ -273,11 +274,12 @@ class Reader:
     ) -> Expr | None:
         expr = self._parse(node, what, values, lambda text: resolve(parse_syntax(text), scope))
         if expr is not None:
-            self.terms += size(expr, self.sizes)
+            held = len(self.sizes)
+            size(expr, self.sizes)  # refused by `&&`/`||` past MAX_TERMS written out, each
+            self.terms += len(self.sizes) - held  # the terms new to the model: what it holds
             if self.terms > MAX_MODEL_TERMS:
                 message = (
-                    f"in {what}: the model's expressions have more than {MAX_MODEL_TERMS} "
-                    "terms with the predicates they name written out"
+                    f"in {what}: the model's expressions hold more than {MAX_MODEL_TERMS} terms"
                 )
                 raise ModelError([*self.diagnostics, Diagnostic(self.at(node), message)])
         return expr

@@ -55,6 +55,8 @@ def expected_declarations() -> dict[Key, frozenset[str] | str]:
         if key in DECLARE_NOTHING:
             assert key in CHECKED_BY_THE_HANDLER or route.needs in (PUBLIC, SIGNED_IN), key
             table[key] = NOTHING
+        elif route.needs == SIGNED_IN:  # a page of one's own: `Requires()`, no permission
+            table[key] = frozenset({SIGNED_IN})
         else:
             assert isinstance(route.needs, frozenset), f"{key}: list it in DECLARE_NOTHING"
             table[key] = route.needs
@@ -63,11 +65,11 @@ def expected_declarations() -> dict[Key, frozenset[str] | str]:
 
 def required(dependencies: Iterable[Any]) -> set[str]:
     """The permissions of every `Requires` among `dependencies` (FastAPI's `Dependant`s),
-    followed down to the dependencies' own."""
+    followed down to the dependencies' own; SIGNED_IN for a `Requires` of none."""
     found: set[str] = set()
     for dependant in dependencies:
         if isinstance(dependant.call, Requires):
-            found.update(str(p) for p in dependant.call.permissions)
+            found.update(str(p) for p in dependant.call.permissions or (SIGNED_IN,))
         found |= required(dependant.dependencies)
     return found
 

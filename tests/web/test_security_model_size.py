@@ -26,9 +26,13 @@ def test_a_text_past_the_editors_limit_is_said_so(station: RunningStation) -> No
     client = station.client()
     token = station.login(client, "engineer")
     text = "# " + "x" * 2_000_000
-    answer = client.post("/model/validate", data={"text": text, "csrf_token": token})
+    form = {"text": text, "csrf_token": token}
+    answer = client.post("/model/validate", data=form, headers={"HX-Request": "true"})
     assert answer.status_code == 422
     assert "at most 2000000 characters" in answer.text
+    answer = client.post("/model/validate", data=form, follow_redirects=False)
+    assert answer.status_code == 303  # a form without htmx: redirected, the refusal shown once
+    assert "at most 2000000 characters" in client.get(answer.headers["location"]).text
 
 
 def test_other_bodies_are_held_to_a_megabyte(station: RunningStation) -> None:

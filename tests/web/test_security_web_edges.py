@@ -289,7 +289,7 @@ def test_guards_naming_a_large_predicate_do_not_walk_it_each_time(
     monkeypatch.setattr(expressions, "_operands", counted)
     load_station("\n".join(lines) + "\n", "big.yaml")
     # the predicate's 20,000 operands a few times over, not once for each of the 1,000 guards
-    assert 20_000 <= looked_at < 5 * 20_000, looked_at
+    assert 20_000 <= looked_at < 10 * 20_000, looked_at  # (its size measured once, too)
 
 
 def engineer(station: RunningStation) -> tuple[TestClient, str]:

@@ -87,7 +87,9 @@ def list_tokens(request: Request, caller: SignedIn, srv: ServerDep) -> list[Toke
     ]
 
 
-@router.delete("/tokens/{token_id}", dependencies=[Depends(bearer)], responses=errors(401, 404))
+@router.delete(
+    "/tokens/{token_id}", dependencies=[Depends(bearer)], responses=errors(401, 404, 422)
+)
 def revoke_token(caller: SignedIn, srv: ServerDep, token_id: TokenId) -> Message:
     """End one of the caller's own tokens (the one this request carries, too)."""
     tokens.revoke(srv, caller, token_id)
