@@ -13,6 +13,13 @@ it is ready (imports are not counted against the budget); the parent then waits 
 budget's seconds for the answer; a child that runs past them is killed, and one that died
 (out of memory: CUDD aborts, Python raises MemoryError) is said so.  At most `at_once`
 children run at a time; others wait.
+
+Reading (validation) is asked for far more often than building, often as someone types: so
+a reading child is kept for the next one (`Reader`), and only started anew after it ran
+past its time or died.  A child of its own limits each job's time with an alarm (its
+default action ends the process, even inside C code), so it ends even when its parent was
+killed meanwhile; and it ends when its parent closes the pipe.  Building always gets a
+fresh child: what synthesis leaves in CUDD's memory is not the next model's business.
 """
 
 from __future__ import annotations
@@ -22,6 +29,7 @@ import json
 import os
 import resource
 import select
+import signal
 import subprocess
 import sys
 import threading
@@ -62,6 +70,8 @@ class ModelChecks:
 
     budget: ModelBudget = field(default_factory=ModelBudget)
     slots: threading.BoundedSemaphore = field(init=False)
+    idle: list[Reader] = field(init=False, default_factory=list)  # kept for the next read
+    lock: threading.Lock = field(init=False, default_factory=threading.Lock)
 
     def __post_init__(self) -> None:
         self.slots = threading.BoundedSemaphore(self.budget.at_once)
@@ -69,8 +79,32 @@ class ModelChecks:
     def problems(self, text: str, file: str) -> Found:
         """Every problem reading `text` finds (empty when valid); OverBudget past the budget."""
         seconds = self.budget.read_seconds
-        found: Found = self._run("read", text, file, None, seconds, "to read")
-        return found
+        if not self.slots.acquire(timeout=READY_WITHIN):
+            raise OverBudget("other models are being checked; try again in a moment")
+        try:
+            with self.lock:
+                reader = self.idle.pop() if self.idle else None
+            if reader is None:
+                reader = Reader(self.budget.memory)
+            job = {"kind": "read", "text": text, "file": file, "cache": None}
+            answer = reader.ask(job | {"seconds": seconds})
+            if answer and answer["outcome"] != "memory":
+                with self.lock:
+                    self.idle.append(reader)
+            else:
+                reader.close()
+        finally:
+            self.slots.release()
+        if answer is None:
+            raise OverBudget(f"the model is too large to read within {seconds:g} s")
+        return _found(answer, self.budget.memory, "the model is too large", "to read")
+
+    def close(self) -> None:
+        """End the reading children kept (the server stops)."""
+        with self.lock:
+            idle, self.idle = self.idle, []
+        for reader in idle:
+            reader.close()
 
     def build(self, text: str, file: str, cache: Path | None) -> Found:
         """Read `text` and synthesise its supervisor into `cache`; the problems reading
@@ -83,7 +117,6 @@ class ModelChecks:
         self, kind: str, text: str, file: str, cache: Path | None, seconds: float, doing: str
     ) -> Found:
         what = "the supervisor is too large" if kind == "build" else "the model is too large"
-        megabytes = self.budget.memory // 2**20
         if not self.slots.acquire(timeout=READY_WITHIN):
             raise OverBudget("other models are being checked; try again in a moment")
         where = None if cache is None else str(cache)
@@ -112,9 +145,46 @@ class ModelChecks:
             if child.stdout is not None:
                 child.stdout.close()
             self.slots.release()
-        if not answer or answer["outcome"] == "memory":  # died (CUDD aborts) or MemoryError
-            raise OverBudget(f"{what} {doing} within {megabytes} MB of memory")
-        return [(line, column, message) for line, column, message in answer["found"]]
+        return _found(answer, self.budget.memory, what, doing)
+
+
+def _found(answer: dict[str, Any], memory: int, what: str, doing: str) -> Found:
+    if not answer or answer["outcome"] == "memory":  # died (CUDD aborts) or MemoryError
+        raise OverBudget(f"{what} {doing} within {memory // 2**20} MB of memory")
+    return [(line, column, message) for line, column, message in answer["found"]]
+
+
+class Reader:
+    """A reading child kept between jobs (module docstring): one job at a time."""
+
+    def __init__(self, memory: int) -> None:
+        command = [sys.executable, "-m", "app.station.model_budget", "--reader", str(memory)]
+        self.child = subprocess.Popen(
+            command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, bufsize=0, env=_environment()
+        )
+        self.ready = False
+
+    def ask(self, job: dict[str, Any]) -> dict[str, Any] | None:
+        """The child's answer to `job`; None past its seconds, {} when it died (it is then
+        of no further use: close it)."""
+        assert self.child.stdin is not None and self.child.stdout is not None
+        try:
+            self.child.stdin.write(json.dumps(job).encode() + b"\n")
+        except (BrokenPipeError, ValueError):
+            return {}
+        if not self.ready:
+            if _line(self.child.stdout, READY_WITHIN) is None:
+                raise OverBudget("the model could not be checked: its process did not start")
+            self.ready = True
+        return _line(self.child.stdout, float(job["seconds"]))
+
+    def close(self) -> None:
+        if self.child.poll() is None:
+            self.child.kill()
+        self.child.wait(timeout=10)
+        for pipe in (self.child.stdin, self.child.stdout):
+            if pipe is not None:
+                pipe.close()
 
 
 def _environment() -> dict[str, str]:
@@ -140,6 +210,39 @@ def _limit(which: int, most: int) -> None:
     _, hard = resource.getrlimit(which)
     limit = most if hard == resource.RLIM_INFINITY else min(most, hard)
     resource.setrlimit(which, (limit, limit))
+
+
+def reader(memory: int) -> None:
+    """A reading child kept between jobs: one job (JSON) per line in, one answer per line out,
+    each job within its seconds by an alarm; it ends when its parent closes the pipe."""
+    os.nice(10)
+    _limit(resource.RLIMIT_AS, memory)
+    out = os.fdopen(os.dup(1), "w")
+    os.dup2(2, 1)
+    from planner.reading import load_station
+
+    print(json.dumps({"ready": True}), file=out, flush=True)
+    for line in sys.stdin.buffer:
+        job = json.loads(line)
+        signal.alarm(int(job["seconds"]) + 1)  # its default action ends the process
+        answer = _read(load_station, job["text"], job["file"])
+        signal.alarm(0)
+        print(json.dumps(answer), file=out, flush=True)
+
+
+def _read(load: Any, text: str, file: str) -> dict[str, Any]:
+    from planner.reading.yaml_reader import ModelError
+
+    try:
+        load(text, file)
+    except ModelError as exc:
+        found = [(d.location.line, d.location.column, d.message) for d in exc.diagnostics]
+        return {"outcome": "problems", "found": found}
+    except MemoryError:
+        return {"outcome": "memory", "found": []}
+    except Exception as exc:  # a fault of ours, said to the engineer (the server goes on)
+        return {"outcome": "problems", "found": [(1, 1, f"the model could not be checked: {exc}")]}
+    return {"outcome": "ok", "found": []}
 
 
 def main() -> None:
@@ -184,4 +287,7 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    if sys.argv[1:2] == ["--reader"]:
+        reader(int(sys.argv[2]))
+    else:
+        main()

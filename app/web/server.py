@@ -79,6 +79,7 @@ class Server:
         self.failure_writer.start()
 
     def stop(self) -> None:
+        self.models.close()
         self.failure_writer.stop()
         self.live.stop()
         if self.checkpoints is not None:
