@@ -10,10 +10,10 @@ from planner.planning.transition_planner import TransitionPlanner
 from planner.reading import load_station
 
 
-def poison_cache(directory: Path, model: Path) -> None:
-    """The supervisor cache's entry for `model` rewritten to "no forbidden states": its bad
-    states replaced by none, with the checksum recomputed so that it matches."""
-    empty = TransitionPlanner(load_station(model.read_text(), str(model)).model)
+def poison_cache(directory: Path, text: str) -> None:
+    """The supervisor cache's entry for the model `text` rewritten to "no forbidden states":
+    its bad states replaced by none, with the checksum recomputed so that it matches."""
+    empty = TransitionPlanner(load_station(text, "model.yaml").model)
     (bad_path,) = directory.glob("*.dddmp")
     bad_path.unlink()
     empty.sym.bdd.dump(str(bad_path), [empty.sym.bdd.false])

@@ -17,7 +17,7 @@ from planner.planning.transition_planner import TransitionPlanner
 from planner.reading import load_station
 from planner.reading.yaml_reader import scope_for
 from tests.support.attacks import poison_cache
-from tests.support.paths import MINI_STATION, REPOSITORY
+from tests.support.paths import MINI_STATION
 
 MINI = MINI_STATION
 
@@ -123,19 +123,19 @@ def test_the_order_chosen_for_search_is_saved_and_plans_exactly_like_any_other(
         assert [other.plan(q) for q in queries] == expected
 
 
-DEMO = REPOSITORY / "models" / "demo_station.yaml"
+FAMILY = yaml.safe_dump(family.station(3, 2), sort_keys=False)  # small, with bad states
 
 
 def forbidden(directory: Path | None) -> tuple[int, dict[str, int]]:
-    """How many states the demo station's supervisor forbids, in all and per specification."""
-    text = DEMO.read_text()
-    planner = supervisor_cache.planner(load_station(text, str(DEMO)).model, text, "bdd", directory)
+    """How many states a station's supervisor forbids, in all and per specification."""
+    model = load_station(FAMILY, "family.yaml").model
+    planner = supervisor_cache.planner(model, FAMILY, "bdd", directory)
     each = {name: planner.sym.count(f) for name, f in planner.bad_by_specification.items()}
     return planner.sym.count(planner.bad), each
 
 
 def _poison(directory: Path) -> None:
-    poison_cache(directory, DEMO)
+    poison_cache(directory, FAMILY)
 
 
 def test_an_entry_rewritten_to_no_forbidden_states_is_not_believed(tmp_path: Path) -> None:
