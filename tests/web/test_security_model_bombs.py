@@ -7,6 +7,7 @@ activation is refused in words, version 1 runs on, and every validation is audit
 
 from __future__ import annotations
 
+import gc
 import threading
 import time
 from collections.abc import Iterator
@@ -25,11 +26,18 @@ BUDGET = ModelBudget(seconds=2.0, read_seconds=15.0, memory=1024 * 2**20, at_onc
 
 @pytest.fixture
 def guarded(tmp_path: Path) -> Iterator[RunningStation]:
-    """A served demo station whose models must build within 2 s."""
+    """A served demo station whose models must build within 2 s; what start-up built kept out
+    of the collector's full collections, as `sp serve` does (app.cli.station), here with the
+    test process's own objects too (those would make each full collection hold the GIL)."""
     running = start_station(tmp_path, period=0.1, speed=1.0, model_budget=BUDGET)
     running.serve()
-    yield running
-    running.stop()
+    gc.collect()
+    gc.freeze()
+    try:
+        yield running
+    finally:
+        running.stop()
+        gc.unfreeze()
 
 
 def refusals(station: RunningStation, subject: str) -> int:
