@@ -14,7 +14,7 @@ Rows are read raw (untyped SQL), so that a value of the wrong type is seen as st
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -49,11 +49,14 @@ class RowCheck:
         return [f for f in self.findings if f.steers]
 
 
-def raw_rows(store: Store, spec: SealedTable) -> Iterator[dict[str, Any]]:
-    columns = sorted({*spec.fields, "seq", "mac"})
+def raw_rows(
+    store: Store, table: str, columns: Sequence[str], order: str | None = None
+) -> Iterator[dict[str, Any]]:
+    """Raw rows, untyped: a value of the wrong type is seen as it is stored."""
     names = ", ".join(f'"{c}"' for c in columns)
+    ordered = "" if order is None else f' ORDER BY "{order}"'
     with store.engine.connect() as connection:
-        result = connection.execute(text(f'SELECT {names} FROM "{spec.name}"'))
+        result = connection.execute(text(f'SELECT {names} FROM "{table}"{ordered}'))
         while batch := result.fetchmany(2000):
             for row in batch:
                 yield dict(zip(columns, row, strict=True))
@@ -66,7 +69,7 @@ def check_rows(
     rows of `station` it acts on (its state, alarms, active version `active`) steer it."""
     check = RowCheck()
     for spec in TABLES:
-        for values in raw_rows(store, spec):
+        for values in raw_rows(store, spec.name, sorted({*spec.fields, "seq", "mac"})):
             check.rows += 1
             identity = spec.identity(values)
             problem = _problem(spec, keys, values, known.get(identity, 0))

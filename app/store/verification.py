@@ -29,12 +29,10 @@ from __future__ import annotations
 
 import hmac
 import json
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
-
-from sqlalchemy import text
 
 from app.store import checkpoints, integrity, seals
 from app.store.audit import GENESIS, AuditKind, record_hash
@@ -92,16 +90,6 @@ class _Runs:
         self.open = None
 
 
-def _rows(store: Store, table: str, columns: Sequence[str], order: str) -> Iterator[dict[str, Any]]:
-    """Raw rows, untyped: a value of the wrong type is seen as it is stored."""
-    names = ", ".join(f'"{c}"' for c in columns)
-    with store.engine.connect() as connection:
-        result = connection.execute(text(f'SELECT {names} FROM "{table}" ORDER BY "{order}"'))
-        while batch := result.fetchmany(2000):
-            for row in batch:
-                yield dict(zip(columns, row, strict=True))
-
-
 def _wrong_type(row: dict[str, Any], numbers: Sequence[str], texts: Sequence[str]) -> str:
     for name in numbers:
         value = row[name]
@@ -127,7 +115,7 @@ def verify(store: Store, keys: StationKeys | None) -> Report:
     added: dict[str, int] = {}  # user name -> the record that added it
     hashes: dict[int, str] = {}
     previous, expected_id = GENESIS, 1
-    for row in _rows(store, "audit", AUDIT_COLUMNS, "id"):
+    for row in integrity.raw_rows(store, "audit", AUDIT_COLUMNS, "id"):
         report.records += 1
         wrong = _wrong_type(row, ("id", "time"), TEXT)
         record = row["id"] if isinstance(row["id"], int) else expected_id
@@ -235,7 +223,7 @@ def _check_checkpoints(keys: StationKeys, report: Report, hashes: dict[int, str]
 def _check_users(store: Store, report: Report, added: dict[str, int]) -> None:
     """The users' names against the log: a row inserted or deleted outside the station."""
     seen = set()
-    for row in _rows(store, "users", ("id", "name"), "id"):
+    for row in integrity.raw_rows(store, "users", ("id", "name"), "id"):
         report.users += 1
         name = str(row["name"])
         seen.add(name)
@@ -256,7 +244,7 @@ def _check_rows(store: Store, keys: StationKeys, report: Report) -> None:
     """Every sealed row (app.store.row_seals): its seal, its counter against the newest
     checkpoint of each station, a row the station would not delete still there; each
     station's state against the log."""
-    stations = [str(r["name"]) for r in _rows(store, "stations", ("name",), "name")]
+    stations = [str(r["name"]) for r in integrity.raw_rows(store, "stations", ("name",), "name")]
     known: dict[str, int] = {}
     for station in stations:
         for identity, seq in checkpoints.newest_rows(keys, station).items():

@@ -10,7 +10,7 @@ refused with a located error instead of overflowing the stack of whatever walks 
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 
 Value = bool | str
@@ -158,28 +158,21 @@ def depth(expr: Expr, measured: dict[int, tuple[Expr, int]] | None = None) -> in
     the node and its depth; holding the node keeps its id from being another's) carries what
     was measured from call to call: the guards that name one large predicate walk it once.
     """
-    known = {} if measured is None else measured
-    todo = [expr]
-    while todo:
-        node = todo[-1]
-        entry = known.get(id(node))
-        if entry is not None and entry[0] is node:
-            todo.pop()
-            continue
-        operands = _operands(node)
-        waiting = [o for o in operands if (e := known.get(id(o))) is None or e[0] is not o]
-        if waiting:
-            todo.extend(waiting)
-            continue
-        todo.pop()
-        known[id(node)] = (node, 1 + max(known[id(o)][1] for o in operands) if operands else 0)
-    return known[id(expr)][1]
+    return _measure(expr, measured, lambda below: 1 + max(below) if below else 0)
 
 
 def size(expr: Expr, measured: dict[int, tuple[Expr, int]] | None = None) -> int:
     """How many nodes `expr` has written out as a tree (a shared part counted each time it
     appears), counted over its shared nodes once each, as `depth` is: linear in what is held,
     whatever it stands for."""
+    return _measure(expr, measured, lambda below: 1 + sum(below))
+
+
+def _measure(
+    expr: Expr, measured: dict[int, tuple[Expr, int]] | None, combine: Callable[[list[int]], int]
+) -> int:
+    """`combine` of the operands' measures, node by node from the leaves up, each shared node
+    once (`measured`: id -> the node and its measure, kept between calls)."""
     known = {} if measured is None else measured
     todo = [expr]
     while todo:
@@ -194,7 +187,7 @@ def size(expr: Expr, measured: dict[int, tuple[Expr, int]] | None = None) -> int
             todo.extend(waiting)
             continue
         todo.pop()
-        known[id(node)] = (node, 1 + sum(known[id(o)][1] for o in operands))
+        known[id(node)] = (node, combine([known[id(o)][1] for o in operands]))
     return known[id(expr)][1]
 
 
