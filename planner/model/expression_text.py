@@ -15,6 +15,7 @@ from planner.model.expression_syntax import AssignSyntax, SyntaxNode, Word, pars
 from planner.model.expressions import (
     MAX_NESTING,
     MAX_TERMS,
+    And,
     Assign,
     BoolVar,
     Const,
@@ -23,6 +24,7 @@ from planner.model.expressions import (
     ExpressionError,
     Implies,
     Not,
+    Or,
     SameValue,
     Value,
     conjunction,
@@ -47,13 +49,15 @@ class Scope:
         predicates: Mapping[str, Expr] | None = None,
         suggest: Callable[[str], str | None] | None = None,
         aliases: Mapping[str, str] | None = None,
+        sizes: dict[int, tuple[Expr, int]] | None = None,
     ) -> None:
         self.domains = domains
         self.predicates = predicates or {}
         self.suggest = suggest or (lambda name: None)
         self.aliases = aliases or {}
         self.depths: dict[int, tuple[Expr, int]] = {}  # the predicates' `depth`s, as measured
-        self.sizes: dict[int, tuple[Expr, int]] = {}  # and their `size`s
+        # their `size`s: a model's reader shares one memory among all its scopes
+        self.sizes: dict[int, tuple[Expr, int]] = {} if sizes is None else sizes
 
     def canonical(self, word: Word) -> Word:
         """The word with a local name (a resource's `ref`) replaced by its global name."""
@@ -128,6 +132,7 @@ def _resolve(node: SyntaxNode, scope: Scope) -> tuple[Expr, int]:
             _bounded([part for part, _ in parts], scope)
             join = conjunction if node.op == "&&" else disjunction
             expr = join([part for part, _ in parts])
+            _joined_size(expr, [part for part, _ in parts], scope)
             return expr, _joined_depth(expr, parts)
         case "->":
             (left, on_left), (right, on_right) = (_resolve(a, scope) for a in node.args)
@@ -143,6 +148,24 @@ def _resolve(node: SyntaxNode, scope: Scope) -> tuple[Expr, int]:
             expr = negation(expr) if node.compare == "!=" else expr
             return expr, int(isinstance(expr, Not))  # a variable, value or pair, or its negation
     raise AssertionError(node.op)
+
+
+def _joined_size(joined: Expr, parts: list[Expr], scope: Scope) -> None:
+    """Keep the `size` of `conjunction(parts)` or `disjunction(parts)`, from the parts'
+    (`_bounded` measured them): they drop constants and hoist the operands of parts of their
+    own kind.  Measuring the join itself would walk those operands again: a thousand guards
+    naming a predicate of 20,000 conjuncts each, 20,000 times a thousand."""
+    kind = type(joined)
+    if kind not in (And, Or) or any(part is joined for part in parts):
+        return
+    total = 1
+    for part in parts:
+        measured = scope.sizes[id(part)][1]
+        if isinstance(part, kind):
+            total += measured - 1
+        elif not isinstance(part, Const):
+            total += measured
+    scope.sizes[id(joined)] = (joined, total)
 
 
 def _joined_depth(joined: Expr, parts: list[tuple[Expr, int]]) -> int:

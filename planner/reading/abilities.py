@@ -143,10 +143,10 @@ def _read_instance(
     where = template.where
     local: dict[str, Expr] = {}
     for key, value_node in template.predicates:
-        scope = scope_for(domains, local, aliases)
+        scope = scope_for(domains, local, aliases, reader.sizes)
         expr = reader.expression(value_node, scope, f"predicate '{key}' of {where}", values)
         local[key] = expr if expr is not None else TRUE  # reported; avoid follow-on errors
-    scope = scope_for(domains, local, aliases)
+    scope = scope_for(domains, local, aliases, reader.sizes)
     transitions: Located = []
     for node in template.transitions:
         t = read_transition(

@@ -265,7 +265,7 @@ def read_flat(reader: Reader, top: dict[str, tuple[yaml.Node, yaml.Node]]) -> Mo
     at = name_nodes(variable_nodes)
     reader.unique([(v.name, at(v.source)) for v in variables], "variable")
     by_name = {v.name: v for v in variables}
-    scope = scope_for({v.name: v.domain for v in variables})
+    scope = scope_for({v.name: v.domain for v in variables}, sizes=reader.sizes)
 
     transition_nodes = (
         reader.sequence(top["transitions"][1], "transitions") if "transitions" in top else []

@@ -75,13 +75,13 @@ class _StationReader:
         self.read_variables()
         prefixed = _by_prefix(self.variables)
         resources = [self.read_resource(r, f, prefixed) for r, f in self.resource_fields]
-        scope = scope_for(self.domains, self.predicates)
+        scope = scope_for(self.domains, self.predicates, sizes=reader.sizes)
         self.read_station_transitions(scope)
         specifications = self.read_specifications(scope)
         operations = read_operations(
             reader, self.sequence(top, "operations"), scope, self.by_name, self.predicates
         )
-        scope = scope_for(self.domains, self.predicates)
+        scope = scope_for(self.domains, self.predicates, sizes=reader.sizes)
         intentions = read_intentions(
             reader, self.sequence(top, "intentions"), scope, self.by_name, self.predicates
         )
@@ -143,7 +143,7 @@ class _StationReader:
         aliases = {name[len(prefix) :]: name for name in prefixed.get(prefix, ())}
         own: list[str] = []
         abilities = self.read_abilities(resource, fields, aliases, own)
-        scope = scope_for(self.domains, self.predicates, aliases)
+        scope = scope_for(self.domains, self.predicates, aliases, self.reader.sizes)
         for node in self.sequence(fields, "transitions"):
             read = read_transition(self.reader, node, scope, self.by_name)
             if read is not None:

@@ -272,9 +272,9 @@ class Reader:
     def expression(
         self, node: yaml.Node, scope: Scope, what: str, values: Mapping[str, str] | None = None
     ) -> Expr | None:
+        held = len(self.sizes)  # the scope measures as it resolves, in `sizes` when shared
         expr = self._parse(node, what, values, lambda text: resolve(parse_syntax(text), scope))
         if expr is not None:
-            held = len(self.sizes)
             size(expr, self.sizes)  # refused by `&&`/`||` past MAX_TERMS written out, each
             self.terms += len(self.sizes) - held  # the terms new to the model: what it holds
             if self.terms > MAX_MODEL_TERMS:
@@ -314,13 +314,15 @@ def scope_for(
     domains: Mapping[str, tuple[Value, ...]],
     predicates: Mapping[str, Expr] | None = None,
     aliases: Mapping[str, str] | None = None,
+    sizes: dict[int, tuple[Expr, int]] | None = None,
 ) -> Scope:
-    """Names known to an expression: variables, named predicates, and local aliases."""
+    """Names known to an expression: variables, named predicates, and local aliases; `sizes`
+    the reader's memory of what its expressions measure (`Reader.sizes`), when reading."""
 
     def suggest(name: str) -> str | None:  # only for a message: the names listed then
         return closest(name, [*domains, *(predicates or {}), *(aliases or {})])
 
-    return Scope(domains, predicates, suggest, aliases)
+    return Scope(domains, predicates, suggest, aliases, sizes)
 
 
 def each(

@@ -7,9 +7,10 @@ from __future__ import annotations
 
 import pytest
 
-from planner.model.expressions import MAX_TERMS, And, BoolVar, Implies, size
+from planner.model.expression_text import parse_expr
+from planner.model.expressions import MAX_TERMS, And, BoolVar, Expr, Implies, size
 from planner.reading import load_station
-from planner.reading.yaml_reader import ModelError
+from planner.reading.yaml_reader import ModelError, scope_for
 from tests.support.bombs import predicate_bomb
 
 
@@ -38,3 +39,27 @@ def test_size_counts_a_shared_part_each_time_in_time_linear_in_what_is_held() ->
     for _ in range(200):  # 2^200 nodes written out; 200 held
         expr = Implies(expr, expr)
     assert size(expr) == 2**200 * 4 - 1
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        "p && q",
+        "p || q",
+        "(a && b) && (c || a) && p",
+        "true && p && (q || false)",
+        "false || p || (a && b) || q",
+        "p && true",
+        "!(p && q) || (p -> q)",
+        "(p && q) && (p && q)",
+    ],
+)
+def test_a_join_is_measured_from_its_parts_as_walking_it_would(text: str) -> None:
+    """`&&` and `||` keep their result's size from their parts' (so that a guard naming a
+    large predicate is not walked again): the same number a fresh walk counts."""
+    booleans = {name: (False, True) for name in "abc"}
+    predicates = {"p": parse_expr("a && (b || c)", scope_for(booleans))}
+    predicates["q"] = parse_expr("!a || c || p", scope_for(booleans, predicates))
+    sizes: dict[int, tuple[Expr, int]] = {}
+    expr = parse_expr(text, scope_for(booleans, predicates, sizes=sizes))
+    assert size(expr, sizes) == size(expr)
