@@ -2,26 +2,32 @@
 a predicate bomb, YAML alias bombs and a valid model whose supervisor takes minutes to
 synthesise are validated, saved and activated (several at once), the station loop keeps its
 period (p99 < 150 ms; before: 0.9-1.9 s gaps, 7 s and +420 MB for 23 predicate levels):
-reading and synthesis run in child processes within the model budget.  The over-budget
-activation is refused in words, version 1 runs on, and every validation is audited."""
+reading and synthesis run in child processes within the model budget, on all cores but one.
+The over-budget activation is refused in words, version 1 runs on, and every validation is
+audited."""
 
 from __future__ import annotations
 
 import gc
+import itertools
+import math
 import threading
 import time
 from collections.abc import Iterator
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
+from typing import Any
 
 import httpx
 import pytest
 
 from app.station.model_budget import ModelBudget
 from tests.support.bombs import alias_bomb, predicate_bomb, synthesis_bomb
+from tests.support.machine import Beside
 from tests.support.stations import RunningStation, start_station
 
-BUDGET = ModelBudget(seconds=2.0, read_seconds=15.0, memory=1024 * 2**20, at_once=2)
+# as many children at once as the server's default: all cores but one
+BUDGET = ModelBudget(seconds=2.0, read_seconds=15.0, memory=1024 * 2**20)
+BOMBING = 8.0  # seconds: some 80 rounds at 0.1 s
 
 
 @pytest.fixture
@@ -68,47 +74,55 @@ def test_a_predicate_bomb_is_a_located_problem_at_once(station: RunningStation) 
     assert refusals(station, "validation refused") == 2  # each validation, as refused
 
 
+def station_gaps(
+    station: RunningStation, began: float, ended: float, stalls: list[list[Any]]
+) -> tuple[list[float], int]:
+    """The loop's gaps between round starts from `began` to `ended` (monotonic clock), sorted,
+    without those a stall of the whole machine overlapped; and how many those were."""
+    starts = [start for start, _ in tuple(station.live.loop.rounds) if began <= start <= ended]
+    kept, machine = [], 0
+    for before, after in itertools.pairwise(starts):
+        if any(at < after and before < at + length for at, length in stalls):
+            machine += 1
+        else:
+            kept.append(after - before)
+    return sorted(kept), machine
+
+
 def test_model_bombs_stall_neither_the_loop_nor_the_server(guarded: RunningStation) -> None:
+    """The bombs come from clients in a process of their own, as from engineers' machines;
+    a bystander process tells the machine's own stalls (a throttled virtual machine stops
+    every process for ~100 ms now and then) from the station's."""
     api = guarded.token(guarded.client(), "engineer")
-    auth = {"Authorization": f"Bearer {api}"}
-    with httpx.Client(base_url=guarded.url, timeout=120, headers=auth) as http:
-        saved = http.post("/api/models", json={"text": synthesis_bomb(), "note": "2^21"})
+    bystander = Beside.start("stalls")
+    with httpx.Client(base_url=guarded.url, timeout=120) as http:
+        auth = {"Authorization": f"Bearer {api}"}
+        saved = http.post(
+            "/api/models", json={"text": synthesis_bomb(), "note": "2^21"}, headers=auth
+        )
         assert saved.status_code == 201, saved.text  # valid: only its supervisor is too large
         number = saved.json()["number"]
-        quiet = http.get("/healthz").json()["loop"]["now"]
-        time.sleep(4)  # the loop on this machine as it is, before the bombs
-        idle = http.get("/healthz", params={"since": quiet}).json()["loop"]
-        since = idle["now"]
-
-        deadline = time.monotonic() + 8  # some 80 rounds: p99 is not one round's gap
-
-        def save(text: str) -> list[httpx.Response]:
-            answers = []
-            with httpx.Client(base_url=guarded.url, timeout=120, headers=auth) as own:
-                while not answers or time.monotonic() < deadline:
-                    answers.append(own.post("/api/models", json={"text": text, "note": "b"}))
-            return answers
-
-        bombs = [predicate_bomb(30), predicate_bomb(60, "->"), alias_bomb(), alias_bomb(12, 7)]
-        with ThreadPoolExecutor(max_workers=4) as pool:
-            saves = [pool.submit(save, text) for text in bombs]
-            activated = http.post(f"/api/models/{number}/activate")
-            answers = [answer for s in saves for answer in s.result()]
-        summary = http.get("/healthz", params={"since": since}).json()
+        clients = Beside.start("bombs", guarded.url, api, str(BOMBING))
+        time.sleep(1)  # the clients are saving by now
+        activated = http.post(f"/api/models/{number}/activate", headers=auth)
+        began, answers = clients.result()
+        ended = time.monotonic()
+        watched, stalls = bystander.result()
         health = http.get("/healthz").json()
 
     assert activated.status_code == 422, activated.text
     detail = activated.json()["detail"]
     assert "the supervisor is too large to build within 2 s" in detail
     assert f"model version {number}" in detail and "version 1 runs on" in detail
-    assert {a.status_code for a in answers} == {422}, [a.text[:200] for a in answers]
-    assert all("line" in a.json()["detail"] for a in answers)
-    loop = summary["loop"]
-    assert loop["rounds"] > 10, loop
-    # the design's bound: 150 ms at a 100 ms period; a machine busy with others may stretch
-    # even the idle loop's gaps, and then the bombs may add no more than a period to them
-    assert loop["period_ms_p99"] < max(150, idle["period_ms_p99"] + 100), (loop, idle)
-    assert loop["period_ms_max"] < 1000, loop  # before: 0.9-1.9 s, and 7 s per 23 levels
+    assert {status for status, _ in answers} == {422}, answers[:5]
+    assert all("line" in detail for _, detail in answers)
+    gaps, machine = station_gaps(guarded, max(began, watched), ended, stalls)
+    assert len(gaps) >= 40, (len(gaps), machine, stalls)  # 8 s of 0.1 s rounds
+    p99 = gaps[math.ceil(0.99 * len(gaps)) - 1]
+    assert p99 < 0.150, (p99, gaps[-5:], machine)  # before: gaps of 0.9-1.9 s
+    starts = [start for start, _ in guarded.live.loop.rounds if began <= start <= ended]
+    longest = max(b - a for a, b in itertools.pairwise(starts))
+    assert longest < 1.0, longest  # the machine's stalls too; before: 7 s per 23 levels
     assert health["model"] == 1 and guarded.live.model.number == 1
     rounds = guarded.live.loop_summary()["rounds"]
     guarded.wait(lambda: guarded.live.loop_summary()["rounds"] > rounds, 5)  # still running
