@@ -29,6 +29,7 @@ fresh child: what synthesis leaves in CUDD's memory is not the next model's busi
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import os
 import resource
@@ -37,6 +38,7 @@ import signal
 import subprocess
 import sys
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
@@ -234,16 +236,18 @@ def reader(memory: int) -> None:
     for line in sys.stdin.buffer:
         job = json.loads(line)
         signal.alarm(int(job["seconds"]) + 1)  # its default action ends the process
-        answer = _read(load_station, job["text"], job["file"])
+        answer = _answer(functools.partial(load_station, job["text"], job["file"]))
         signal.alarm(0)
         print(json.dumps(answer), file=out, flush=True)
 
 
-def _read(load: Any, text: str, file: str) -> dict[str, Any]:
+def _answer(work: Callable[[], object]) -> dict[str, Any]:
+    """What `work` (reading, or reading and building) says to the parent: ok, the model's
+    problems where they are, or out of memory."""
     from planner.reading.yaml_reader import ModelError
 
     try:
-        load(text, file)
+        work()
     except ModelError as exc:
         found = [(d.location.line, d.location.column, d.message) for d in exc.diagnostics]
         return {"outcome": "problems", "found": found}
@@ -265,34 +269,21 @@ def main() -> None:
     out = os.fdopen(os.dup(1), "w")
     os.dup2(2, 1)  # what libraries print goes to stderr, not into the answer
 
-    def say(**answer: Any) -> None:
-        out.write(json.dumps(answer) + "\n")
-        out.flush()
-
     from app.station import supervisor_cache
     from planner.reading import load_station
-    from planner.reading.yaml_reader import ModelError
 
-    say(ready=True)
+    print(json.dumps({"ready": True}), file=out, flush=True)
     text, file = job["text"], job["file"]
     cache = None if job["cache"] is None else Path(job["cache"])
-    try:
+
+    def check() -> None:
         station = load_station(text, file)
         if job["kind"] == "build":
             planner = supervisor_cache.planner(station.model, text, "bdd", cache)
             planner.prepare()
             supervisor_cache.remember_order(planner, text, cache)
-    except ModelError as exc:
-        found = [(d.location.line, d.location.column, d.message) for d in exc.diagnostics]
-        say(outcome="problems", found=found)
-        return
-    except MemoryError:
-        say(outcome="memory", found=[])
-        return
-    except Exception as exc:  # a fault of ours, said to the engineer (the server goes on)
-        say(outcome="problems", found=[(1, 1, f"the model could not be checked: {exc}")])
-        return
-    say(outcome="ok", found=[])
+
+    print(json.dumps(_answer(check)), file=out, flush=True)
 
 
 if __name__ == "__main__":
