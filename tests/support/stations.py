@@ -3,6 +3,7 @@ an in-process client or a real uvicorn server on 127.0.0.1 (for the browser)."""
 
 from __future__ import annotations
 
+import json
 import re
 import socket
 import threading
@@ -97,6 +98,15 @@ class RunningStation:
         assert answer.status_code == 200, answer.text
         token: str = answer.json()["token"]
         return token
+
+    def audit_records(self, kind: str, subject: str) -> list[dict[str, Any]]:
+        """The audit records of `kind` and `subject`, oldest first: who and the detail."""
+        with self.built.server.store.engine.connect() as connection:
+            rows = connection.exec_driver_sql(
+                "SELECT user, detail FROM audit WHERE kind = ? AND subject = ? ORDER BY id",
+                (kind, subject),
+            ).all()
+        return [{"user": user, **json.loads(detail)} for user, detail in rows]
 
     def wait(self, condition: Callable[[], bool], seconds: float = 30.0) -> None:
         deadline = time.monotonic() + seconds

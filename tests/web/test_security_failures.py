@@ -6,23 +6,12 @@ stopped by the per-address limit."""
 
 from __future__ import annotations
 
-import json
 import re
-from typing import Any
 
 from app.people.failures import OTHERS, FailureLog, address_block
 from app.people.throttle import Attempt, Refused, SignInThrottle
 from tests.support.stations import RunningStation
 from tests.web.test_security_throttle import client_at, try_password
-
-
-def login_records(station: RunningStation, subject: str) -> list[dict[str, Any]]:
-    with station.built.server.store.engine.connect() as connection:
-        rows = connection.exec_driver_sql(
-            "SELECT user, detail FROM audit WHERE kind = 'login' AND subject = ? ORDER BY id",
-            (subject,),
-        ).all()
-    return [{"user": user, **json.loads(detail)} for user, detail in rows]
 
 
 def test_failed_sign_ins_are_one_record_per_address_block_with_a_count(
@@ -33,9 +22,9 @@ def test_failed_sign_ins_are_one_record_per_address_block_with_a_count(
     assert try_password(client_at(station, "10.8.9.1"), "other", "wrong-one") == 401
     assert try_password(client_at(station, "10.8.8.9"), "engineer", "wrong-one") == 401
     # nothing written while the requests were answered: counted, summarised later
-    assert login_records(station, "failed") == []
+    assert station.audit_records("login", "failed") == []
     station.built.server.failure_writer.flush(everything=True)
-    records = login_records(station, "failed")
+    records = station.audit_records("login", "failed")
     by_block = {(r["addresses"], r["user"]): r for r in records}
     assert len(records) == 3, records
     unknown = by_block[("10.8.8.0/24", "")]
@@ -67,7 +56,7 @@ def test_bad_bearer_tokens_are_one_record_per_block(station: RunningStation) -> 
         answer = client.get("/api/station", headers={"Authorization": f"Bearer forged-{k}"})
         assert answer.status_code == 401
     station.built.server.failure_writer.flush(everything=True)
-    records = login_records(station, "bad token")
+    records = station.audit_records("login", "bad token")
     assert [(r["addresses"], r["count"]) for r in records] == [("2001:db8:1:2::/64", 5)]
 
 

@@ -33,15 +33,6 @@ def bearer(station: RunningStation, token: str) -> int:
     return station.client().get("/api/station", headers=headers).status_code
 
 
-def login_records(station: RunningStation, subject: str) -> list[dict[str, object]]:
-    with station.built.server.store.engine.connect() as connection:
-        rows = connection.exec_driver_sql(
-            "SELECT user, detail FROM audit WHERE kind = 'login' AND subject = ? ORDER BY id",
-            (subject,),
-        ).all()
-    return [{"user": user, **json.loads(detail)} for user, detail in rows]
-
-
 def test_a_token_issued_from_a_session_ends_when_it_signs_out(station: RunningStation) -> None:
     browser = station.client()
     station.login(browser, "engineer")
@@ -53,7 +44,9 @@ def test_a_token_issued_from_a_session_ends_when_it_signs_out(station: RunningSt
     browser.post("/logout", data={"csrf_token": form_token(page)})
     assert bearer(station, issued) == 401
     assert bearer(station, by_password) == 200
-    [signed_out] = [r for r in login_records(station, "signed out") if r["user"] == "engineer"]
+    [signed_out] = [
+        r for r in station.audit_records("login", "signed out") if r["user"] == "engineer"
+    ]
     assert signed_out["tokens_ended"] == 1
 
 
@@ -72,13 +65,13 @@ def test_tokens_are_listed_and_revoked_one_by_one_on_the_page(station: RunningSt
     assert f"Token {newest}… is revoked." in after
     assert re.findall(r'data-token="([0-9a-f]{16})"', after) == handles[1:]
     assert bearer(station, second) == 401 and bearer(station, first) == 200
-    [revoked] = login_records(station, "api token revoked")
+    [revoked] = station.audit_records("login", "api token revoked")
     assert revoked == {"user": "operator", "token": newest}
     # revoking it again: refused, said on the page, audited as refused
     again = browser.post("/account/tokens/revoke", data=form, follow_redirects=False)
     assert again.status_code == 303
     assert "no live API token" in browser.get("/account").text
-    [refused] = login_records(station, "tokens/revoke refused")
+    [refused] = station.audit_records("login", "tokens/revoke refused")
     assert refused["user"] == "operator" and refused["status"] == 404
 
 
