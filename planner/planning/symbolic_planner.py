@@ -23,6 +23,7 @@ from planner.model.expressions import Expr, Value, conjunction, conjuncts, varia
 from planner.model.flat import TransitionKind
 from planner.model.semantics import Predicate, Semantics, compile_expr
 from planner.planning.query import PlanQuery, PlanResult, PlanStatus, State
+from planner.planning.relaxed import goal_may_hold
 from planner.planning.relevance import Component, Structure, allowed_conjuncts, cone_of_influence
 from planner.planning.search import Outcome, Problem, probe, search
 from planner.planning.symmetry import Swapper, Symmetry, find_symmetries, neighbours
@@ -235,6 +236,10 @@ class SymbolicPlanner:
             return self._result(query, (), [], {"layers": 1})
         if start & sets.always == sym.false:
             return self._unreachable(query, {"layers": 1})
+        named = {v.name: value for v, value in zip(self.model.variables, query.start, strict=True)}
+        usable = (t.transition for t in sets.usable)
+        if not goal_may_hold(query.goal, named, usable, query.always):  # no search needed
+            return self._unreachable(query, {"layers": 0, "relaxed": 1})
         predicates = list(sets.goal_parts)
         if query.always is not None:
             predicates.extend(conjuncts(query.always))
