@@ -4,17 +4,12 @@ and each must end as its simulated run does, with the paper's recovery types and
 operator's work (the same checks as tests/planner/runner/test_runner.py).
 
 Each experiment runs in its own `sp run` process on its own block of loopback addresses
-(127.0.N.x, the demo device file moved there), three at a time, at twice the demo's pace
-(`PACE`): the scenario's delays halved and the robots commanded twice as fast (their
-acceleration four times), so a move takes half as long on the same path.  The protocols, the
-drivers' timeouts, the runner's period and the nutrunner's own tightening time are as on the
-station: E1 takes 24 s of station time instead of 34.
+(127.0.N.x, the demo device file moved there), three at a time: about half a minute each.
 """
 
 from __future__ import annotations
 
 import json
-import re
 import subprocess
 import sys
 from concurrent.futures import ThreadPoolExecutor
@@ -23,7 +18,6 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-import yaml
 
 from app.station.recovery_types import as_the_paper, label, operator_work, recovery
 from app.station.scenario import load_scenario
@@ -38,8 +32,6 @@ SCENARIOS = ROOT / "models" / "scenarios"
 EXPERIMENTS = sorted(p.stem for p in SCENARIOS.glob("e[1-9]_*.yaml"))
 PARALLEL = 3
 TIME_LIMIT = 240.0
-PACE = 2.0
-MOTION = re.compile(r"motion: \{speed: ([\d.]+), acceleration: ([\d.]+),")
 
 
 @dataclass
@@ -57,32 +49,11 @@ class Event:
         return cls(data.pop("kind"), data.pop("subject"), data)
 
 
-def paced_devices(text: str) -> str:
-    """The device file with every robot `PACE` times as fast on the same paths."""
-
-    def faster(found: re.Match[str]) -> str:
-        speed, acceleration = float(found[1]) * PACE, float(found[2]) * PACE**2
-        return f"motion: {{speed: {speed}, acceleration: {acceleration},"
-
-    paced, robots = MOTION.subn(faster, text)
-    assert robots == 2, "the demo's two robots, each with its motion"
-    return paced
-
-
-def paced_scenario(text: str) -> str:
-    """The scenario with every delay (operators, device effects) `PACE` times as short."""
-    scenario = yaml.safe_load(text)
-    scenario["delays"] = {name: s / PACE for name, s in scenario["delays"].items()}
-    return yaml.safe_dump(scenario, sort_keys=False)
-
-
 def play(name: str, block: int, directory: Path) -> tuple[list[Event], str]:
     devices = directory / f"{name}.devices.yaml"
-    devices.write_text(paced_devices(on_block(DEVICES.read_text(), block)))
-    scenario = directory / f"{name}.yaml"
-    scenario.write_text(paced_scenario((SCENARIOS / f"{name}.yaml").read_text()))
+    devices.write_text(on_block(DEVICES.read_text(), block))
     command = [sys.executable, "-m", "app.cli.main", "run", str(MODEL), "--json"]
-    command += ["--scenario", str(scenario), "--devices", str(devices)]
+    command += ["--scenario", str(SCENARIOS / f"{name}.yaml"), "--devices", str(devices)]
     try:
         done = subprocess.run(
             command, capture_output=True, text=True, timeout=TIME_LIMIT, cwd=ROOT, check=False
