@@ -32,7 +32,7 @@ def usable(model: Model, query: PlanQuery) -> list[Any]:
     ]
 
 
-@settings(SETTINGS, max_examples=400)
+@settings(SETTINGS, max_examples=200)
 @given(data=st.data())
 def test_a_goal_the_boxes_rule_out_has_no_plan_at_any_length(data: st.DataObject) -> None:
     model_dict = data.draw(flat_models())
