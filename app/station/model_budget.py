@@ -38,7 +38,7 @@ import signal
 import subprocess
 import sys
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
@@ -90,9 +90,7 @@ class ModelChecks:
     def problems(self, text: str, file: str) -> Found:
         """Every problem reading `text` finds (empty when valid); OverBudget past the budget."""
         seconds = self.budget.read_seconds
-        if not self.slots.acquire(timeout=READY_WITHIN):
-            raise OverBudget("other models are being checked; try again in a moment")
-        try:
+        with self._slot():
             with self.lock:
                 reader = self.idle.pop() if self.idle else None
             if reader is None:
@@ -104,11 +102,20 @@ class ModelChecks:
                     self.idle.append(reader)
             else:
                 reader.close()
-        finally:
-            self.slots.release()
         if answer is None:
             raise OverBudget(f"the model is too large to read within {seconds:g} s")
         return _found(answer, self.budget.memory, "the model is too large", "to read")
+
+    @contextlib.contextmanager
+    def _slot(self) -> Iterator[None]:
+        """One of the `at_once` places for a child, held while it runs; OverBudget when none
+        frees up in time."""
+        if not self.slots.acquire(timeout=READY_WITHIN):
+            raise OverBudget("other models are being checked; try again in a moment")
+        try:
+            yield
+        finally:
+            self.slots.release()
 
     def close(self) -> None:
         """End the reading children kept (the server stops)."""
@@ -128,34 +135,33 @@ class ModelChecks:
         self, kind: str, text: str, file: str, cache: Path | None, seconds: float, doing: str
     ) -> Found:
         what = "the supervisor is too large" if kind == "build" else "the model is too large"
-        if not self.slots.acquire(timeout=READY_WITHIN):
-            raise OverBudget("other models are being checked; try again in a moment")
         where = None if cache is None else str(cache)
         job: dict[str, Any] = {"kind": kind, "text": text, "file": file, "cache": where}
         job |= {"memory": self.budget.memory, "seconds": seconds}
         # a program of its own, not multiprocessing's spawn: that would import the server's
         # whole `__main__` (FastAPI and all) in each child, at the station's priority
         command = [sys.executable, "-m", "app.station.model_budget"]
-        child = subprocess.Popen(
-            command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, bufsize=0, env=_environment()
-        )
-        try:
-            assert child.stdin is not None and child.stdout is not None
-            with contextlib.suppress(BrokenPipeError):
-                child.stdin.write(json.dumps(job).encode())
-                child.stdin.close()
-            if _line(child.stdout, READY_WITHIN) is None:
-                raise OverBudget("the model could not be checked: its process did not start")
-            answer = _line(child.stdout, seconds)
-            if answer is None:
-                raise OverBudget(f"{what} {doing} within {seconds:g} s")
-        finally:
-            if child.poll() is None:
-                child.kill()
-            child.wait(timeout=10)
-            if child.stdout is not None:
-                child.stdout.close()
-            self.slots.release()
+        with self._slot():
+            pipe = subprocess.PIPE
+            child = subprocess.Popen(
+                command, stdin=pipe, stdout=pipe, bufsize=0, env=_environment()
+            )
+            try:
+                assert child.stdin is not None and child.stdout is not None
+                with contextlib.suppress(BrokenPipeError):
+                    child.stdin.write(json.dumps(job).encode())
+                    child.stdin.close()
+                if _line(child.stdout, READY_WITHIN) is None:
+                    raise OverBudget("the model could not be checked: its process did not start")
+                answer = _line(child.stdout, seconds)
+                if answer is None:
+                    raise OverBudget(f"{what} {doing} within {seconds:g} s")
+            finally:
+                if child.poll() is None:
+                    child.kill()
+                child.wait(timeout=10)
+                if child.stdout is not None:
+                    child.stdout.close()
         return _found(answer, self.budget.memory, what, doing)
 
 
