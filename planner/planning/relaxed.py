@@ -108,9 +108,13 @@ def _assign(t: Transition, boxes: Boxes) -> bool:
     """Add what `t` assigns to the boxes; whether one grew."""
     grew = False
     for action in t.actions:
-        added = set(boxes[action.source]) if action.source is not None else {action.value}
+        if action.source is not None:
+            added = set(boxes[action.source])
+        else:
+            assert action.value is not None  # an Assign has a value or a source
+            added = {action.value}
         box = boxes[action.target]
         if not added <= box:
-            box |= added  # type: ignore[arg-type]
+            box |= added
             grew = True
     return grew
