@@ -4,7 +4,12 @@ The loop calls the station's round (`LiveStation.round`, `app.station.rounds`) a
 until the next one is due; a round that fails is logged and reported (`failed`), and the
 loop goes on.  A late round is not made up: the next one starts a period after it.  The
 loop keeps each round's start and duration for `summary`, which the caller's thread
-computes (`/healthz`, the benchmarks): the loop itself only appends two numbers.
+computes (`/healthz`, the benchmarks): the loop itself only appends three numbers.
+
+The third is how long the loop's thread has waited for a CPU so far (Linux's run-queue
+time, `/proc/thread-self/schedstat`, one 2 us read of a kept file): a round that started
+late while the thread sat runnable on a busy machine is the machine's lateness, one that
+started late while the thread waited on a lock or the interpreter is the station's.
 """
 
 from __future__ import annotations
@@ -12,6 +17,7 @@ from __future__ import annotations
 import itertools
 import logging
 import math
+import os
 import threading
 import time
 from collections import deque
@@ -41,7 +47,8 @@ class StationLoop:
         self.started_at = clock()
         self.thread: threading.Thread | None = None
         self.stopping = threading.Event()
-        self.rounds: deque[tuple[float, float]] = deque(maxlen=HISTORY)  # (start, duration)
+        # (start, duration, seconds waited for a CPU so far): the module docstring
+        self.rounds: deque[tuple[float, float, float]] = deque(maxlen=HISTORY)
 
     def now(self) -> float:
         """Station time: seconds since the loop was made."""
@@ -61,20 +68,22 @@ class StationLoop:
             self.thread.join(timeout=10)
 
     def _run(self) -> None:
+        queued = _RunQueue()
         next_round = self.clock()
         while not self.stopping.is_set():
-            started = self.clock()
+            started, waited = self.clock(), queued.seconds()
             try:
                 self.step()
             except Exception:  # the loop must go on; the cause is logged and audited
                 log.exception("station round failed")
                 self.failed()
-            self.rounds.append((started, self.clock() - started))
+            self.rounds.append((started, self.clock() - started, waited))
             next_round += self.period
             delay = next_round - self.clock()
             if delay < 0:
                 next_round = self.clock()
             self.stopping.wait(max(0.0, delay))
+        queued.close()
 
     def summary(self, since: float | None = None) -> dict[str, float | int]:
         """How well the loop keeps its period, over the rounds kept (the last `HISTORY`) or
@@ -83,14 +92,15 @@ class StationLoop:
         On the loop's clock: `period_ms` are the gaps between successive round starts,
         `late` how many exceed `LATE` periods, `round_ms` the rounds' own durations (take,
         tick, commit, notify); `now` is the station time of this summary, to pass as `since`
-        to a later one; `cpu_s` the loop thread's CPU seconds so far.
+        to a later one; `cpu_s` the loop thread's CPU seconds so far, `queued_s` the seconds it
+        waited for a CPU over these rounds (high: the machine, not the station, was late).
         """
         rounds = tuple(self.rounds)  # one copy, under the GIL: no lock in the loop
         if since is not None:
             rounds = tuple(r for r in rounds if r[0] >= self.started_at + since)
-        starts = [start for start, _ in rounds]
+        starts = [start for start, _, _ in rounds]
         gaps = sorted(b - a for a, b in itertools.pairwise(starts))
-        took = sorted(duration for _, duration in rounds)
+        took = sorted(duration for _, duration, _ in rounds)
         return {
             "now": round(self.now(), 3),
             "rounds": len(starts),
@@ -102,6 +112,7 @@ class StationLoop:
             "round_ms_p99": _ms(_percentile(took, 0.99)),
             "round_ms_max": _ms(took[-1] if took else 0.0),
             "cpu_s": round(self._cpu(), 3),
+            "queued_s": round(rounds[-1][2] - rounds[0][2], 3) if rounds else 0.0,
         }
 
     def _cpu(self) -> float:
@@ -113,6 +124,29 @@ class StationLoop:
             return time.clock_gettime(time.pthread_getcpuclockid(thread.ident))
         except (AttributeError, OSError):  # not on Linux, or the thread just ended
             return 0.0
+
+
+class _RunQueue:
+    """The calling thread's seconds spent runnable but not running (0 where the OS cannot
+    say); made on the thread it measures."""
+
+    def __init__(self) -> None:
+        try:
+            self.file: int | None = os.open("/proc/thread-self/schedstat", os.O_RDONLY)
+        except OSError:
+            self.file = None
+
+    def seconds(self) -> float:
+        if self.file is None:
+            return 0.0
+        try:  # "<on cpu ns> <waiting for a cpu ns> <time slices>"
+            return int(os.pread(self.file, 64, 0).split()[1]) / 1e9
+        except (OSError, IndexError, ValueError):
+            return 0.0
+
+    def close(self) -> None:
+        if self.file is not None:
+            os.close(self.file)
 
 
 def _percentile(ordered: list[float], share: float) -> float:
