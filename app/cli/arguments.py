@@ -68,8 +68,8 @@ def parser() -> argparse.ArgumentParser:
         command.add_argument(
             "--no-cache",
             action="store_true",
-            help="synthesise the supervisor anew instead of reusing the one saved for this "
-            "model text (in $SP_CACHE_DIR or ~/.cache/sequence-planner)",
+            help="read the model and synthesise its supervisor anew instead of reusing what "
+            "was saved for this model text (in $SP_CACHE_DIR or ~/.cache/sequence-planner)",
         )
     serve = commands.add_parser(
         "serve", help="run the station: runner, simulated devices, web HMI and store"

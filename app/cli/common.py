@@ -10,19 +10,23 @@ from typing import Any
 from hw.device_file.spec import DeviceFile
 from planner.model.flat import Model
 from planner.model.station import Station
-from planner.reading import load_station
 
 
 class UsageError(Exception):
     """Bad arguments or inputs other than the model: exit 2 with this message."""
 
 
-def read_station(path: str) -> tuple[Station, str]:
+def read_station(path: str, cache: bool = True) -> tuple[Station, str]:
+    """The model file at `path` read (from the model cache when `cache` and read before), and
+    its text."""
+    from app.station import model_cache, supervisor_cache
+
     try:
         text = Path(path).read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise UsageError(f"{path}: cannot read the model: {exc}") from None
-    return load_station(text, path), text
+    directory = supervisor_cache.default_directory() if cache else None
+    return model_cache.load(text, path, directory), text
 
 
 def planner_for(args: argparse.Namespace, model: Model, text: str, engine: str = "bdd") -> Any:

@@ -87,7 +87,7 @@ def _goal(station: Station, text: str) -> Expr:
 
 
 def _plan(args: argparse.Namespace, started: float) -> int:
-    station, text = read_station(args.model)
+    station, text = read_station(args.model, cache=not args.no_cache)
     model = station.model
     goal = _goal(station, args.goal)
     start = _read_state(model, args.state) if args.state else tuple(model.initial_values().values())
@@ -193,7 +193,7 @@ def _state_error(path: str, line: int, column: int, message: str) -> NoReturn:
 
 
 def _check(args: argparse.Namespace) -> int:
-    station, text = read_station(args.model)
+    station, text = read_station(args.model, cache=not args.no_cache)
     model = station.model
     planner = planner_for(args, model, text)
     report = _size_report(model, planner, reachable=args.reachable)

@@ -188,7 +188,7 @@ def run(args: argparse.Namespace, observer: QueryObserver | None = None) -> int:
 
     if args.speed < 0:
         raise UsageError("--speed must be 0 or more")
-    station, text = read_station(args.model)
+    station, text = read_station(args.model, cache=not args.no_cache)
     if args.scenario:
         try:
             scenario_text = Path(args.scenario).read_text(encoding="utf-8")

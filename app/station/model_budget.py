@@ -275,7 +275,7 @@ def main() -> None:
     out = os.fdopen(os.dup(1), "w")
     os.dup2(2, 1)  # what libraries print goes to stderr, not into the answer
 
-    from app.station import supervisor_cache
+    from app.station import model_cache, supervisor_cache
     from planner.reading import load_station
 
     print(json.dumps({"ready": True}), file=out, flush=True)
@@ -283,7 +283,7 @@ def main() -> None:
     cache = None if job["cache"] is None else Path(job["cache"])
 
     def check() -> None:
-        station = load_station(text, file)
+        station = load_station(text, file) if cache is None else model_cache.load(text, file, cache)
         if job["kind"] == "build":
             planner = supervisor_cache.planner(station.model, text, "bdd", cache)
             planner.prepare()

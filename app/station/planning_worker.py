@@ -25,10 +25,9 @@ from multiprocessing.process import BaseProcess
 from pathlib import Path
 from typing import Any
 
-from app.station import supervisor_cache
+from app.station import model_cache, supervisor_cache
 from planner.planning.operation_planner import OperationPlanner
 from planner.planning.query import PlanQuery, PlanResult, PlanStatus
-from planner.reading import load_station
 from planner.runner import PlanLevel
 from planner.runner.answers import Answer
 
@@ -41,7 +40,7 @@ WAITING = 8  # queries waiting for the worker; older ones are dropped (their pha
 
 def serve(text: str, file: str, cache: Path | None, delay: float, jobs: Any, replies: Any) -> None:
     """The child process: build the planners, then answer jobs until told to stop."""
-    station = load_station(text, file)
+    station = model_cache.load(text, file, cache)
     transition = supervisor_cache.planner(station.model, text, "bdd", cache)
     transition.prepare()
     planners: dict[PlanLevel, Callable[[PlanQuery], PlanResult]] = {

@@ -59,23 +59,24 @@ def cache_key_path() -> Path:
     return base / "sequence-planner" / "cache.key"
 
 
-def cache_key() -> bytes | None:
-    """The key that seals entries, created on first use; None when it cannot be had (then
-    nothing is read from or written to the cache)."""
+def cache_key(use: str = "supervisor cache") -> bytes | None:
+    """The key that seals entries (one derived per `use`: the supervisors, the read models),
+    created on first use; None when it cannot be had (then nothing is read from or written to
+    the cache)."""
     from app.store.keys import KeyFileError, create_keys, read_keys
 
     path = cache_key_path()
     try:
-        return read_keys(path).derived("supervisor cache")
+        return read_keys(path).derived(use)
     except KeyFileError:
         pass
     try:
-        return create_keys(path).derived("supervisor cache")
+        return create_keys(path).derived(use)
     except (KeyFileError, OSError):  # another process made it meanwhile, or it cannot be
         try:
-            return read_keys(path).derived("supervisor cache")
+            return read_keys(path).derived(use)
         except KeyFileError as problem:
-            log.warning("the supervisor cache is not used: %s", problem)
+            log.warning("the %s is not used: %s", use, problem)
             return None
 
 
@@ -183,6 +184,8 @@ def _save(built: TransitionPlanner, secret: bytes, directory: Path, name: str) -
             }
             entry["seal"] = seal(secret, name, entry)
             order_tmp.write_text(json.dumps(entry))
+            for written in (bad_tmp, specs_tmp, order_tmp):  # CUDD's dump follows the umask
+                written.chmod(0o600)
             os.replace(bad_tmp, bad_path)  # the JSON last: its presence marks a whole entry
             os.replace(specs_tmp, specs_path)
             os.replace(order_tmp, order_path)

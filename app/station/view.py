@@ -9,13 +9,12 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from app.station import supervisor_cache
+from app.station import model_cache, supervisor_cache
 from app.station.alarms import Alarm
 from app.store.tables import ModelVersion
 from planner.model.station import Station
 from planner.planning.operation_planner import OperationPlanner
 from planner.planning.transition_planner import TransitionPlanner
-from planner.reading import load_station
 from planner.runner import Event, Runner, RunnerState
 from planner.words import Wording
 
@@ -69,7 +68,7 @@ class DeviceLink:
 
 def build_model(version: ModelVersion, cache: Path | None) -> ActiveModel:
     """Parse a stored version and build its planners (seconds, unless the supervisor is cached)."""
-    station = load_station(version.text, f"model version {version.number}")
+    station = model_cache.load(version.text, f"model version {version.number}", cache)
     planner = supervisor_cache.planner(station.model, version.text, "bdd", cache)
     planner.prepare()  # here, beside the loop, rather than in its first tick's plan
     supervisor_cache.remember_order(planner, version.text, cache)
