@@ -4,6 +4,7 @@ planner with its cached supervisor."""
 from __future__ import annotations
 
 import argparse
+import gc
 from pathlib import Path
 from typing import Any
 
@@ -26,7 +27,9 @@ def read_station(path: str, cache: bool = True) -> tuple[Station, str]:
     except (OSError, UnicodeDecodeError) as exc:
         raise UsageError(f"{path}: cannot read the model: {exc}") from None
     directory = supervisor_cache.default_directory() if cache else None
-    return model_cache.load(text, path, directory), text
+    station = model_cache.load(text, path, directory)
+    gc.freeze()  # the model lives as long as the command: no collection need walk it again
+    return station, text
 
 
 def planner_for(args: argparse.Namespace, model: Model, text: str, engine: str = "bdd") -> Any:

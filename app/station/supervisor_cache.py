@@ -5,10 +5,12 @@ building a planner (half a second on the demo station, more on large models) and
 on the model's text.  The cache keeps, per model text, the BDD variable order and checksums
 (JSON), the bad states (CUDD's DDDMP format) and the states bad for each specification
 alone (`planner.bdd.data`'s JSON, which holds many named roots and reads fast), keyed by a
-SHA-256 of the text, the `dd` version and this format's number.  Once the first plan has
-chosen the order for search (`TransitionPlanner.tuned`), `remember_order` saves that order
-instead.  Anything missing, unreadable or inconsistent falls back to synthesis; failing to
-write is not an error.
+SHA-256 of the text, the `dd` version, this format's number and the planner's code
+(`model_cache.code_digest`): an entry stands for a build that checked the model's dynamics
+and synthesised, which a restored planner does not do again.  Once the first plan has chosen
+the order for search (`TransitionPlanner.tuned`), `remember_order` saves that order instead.
+A tuned order is declared at once when the planner is built.  Anything missing, unreadable
+or inconsistent falls back to synthesis; failing to write is not an error.
 
 The cache lies outside the database, and whoever writes it could otherwise hand the station
 a supervisor with no forbidden states.  Each entry is sealed: an HMAC, under a key of the
@@ -99,7 +101,10 @@ def key(text: str) -> str:
     import dd
 
     digest = hashlib.sha256()
-    digest.update(f"sequence-planner supervisor {FORMAT} dd {dd.__version__}\n".encode())
+    from app.station.model_cache import code_digest
+
+    header = f"sequence-planner supervisor {FORMAT} dd {dd.__version__} {code_digest()}\n"
+    digest.update(header.encode())
     digest.update(text.encode())
     return digest.hexdigest()
 
@@ -131,7 +136,10 @@ def planner(model: Model, text: str, engine: str, directory: Path | None) -> Tra
                     raise ValueError("the saved closures do not match the specifications")
                 return bad, closures
 
-            restored = TransitionPlanner(model, engine, restore=restore)
+            # a tuned order is the one search uses (`SymbolicPlanner.tune` is then skipped):
+            # declared at once, rather than the static order computed and then replaced
+            order = entry["order"] if entry.get("tuned") else None
+            restored = TransitionPlanner(model, engine, restore=restore, order=order)
             restored.tuned = bool(entry.get("tuned", False))
             return restored
         except Unsealed as problem:

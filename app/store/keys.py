@@ -20,8 +20,6 @@ import secrets
 from dataclasses import dataclass
 from pathlib import Path
 
-from sqlalchemy.engine import make_url
-
 
 class KeyFileError(RuntimeError):
     """The key file cannot be used (unreadable, malformed, or missing while data needs it)."""
@@ -52,6 +50,8 @@ class StationKeys:
 
 def default_key_path(url: str) -> Path | None:
     """Where the key file of the store at `url` is by default (None: in memory)."""
+    from sqlalchemy.engine import make_url  # here: `sp plan` reads the cache key, no store
+
     configured = os.environ.get("SP_KEY_FILE")
     if configured:
         return Path(configured)

@@ -9,7 +9,7 @@ assignments, and `pre_t(Z) = g_t & Z[W := actions]` by (vector) composition.
 from __future__ import annotations
 
 import sys
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -74,7 +74,9 @@ class SymbolicTransition:
 class SymbolicModel:
     """A model's variables as BDD bits, its predicates as BDDs, its transitions as images."""
 
-    def __init__(self, model: Model) -> None:
+    def __init__(self, model: Model, order: Sequence[str] | None = None) -> None:
+        """`order`: the bits' order to declare (a saved, tuned one; ValueError when it is not
+        this model's), instead of the static FORCE order computed from the model."""
         self.model = model
         # CUDD grows its tables up to the memory it is told of (dd's default: 1 GB) before it
         # collects garbage instead; a target keeps a long search near it at a small cost in
@@ -92,7 +94,9 @@ class SymbolicModel:
             names = tuple(f"v{i}_{j}" for j in range(width))
             self.bits[variable.name] = names
         self.state_bits: tuple[str, ...] = tuple(b for bits in self.bits.values() for b in bits)
-        self.bdd.declare(*variable_order(model, self.bits))
+        if order is not None and sorted(order) != sorted(self.state_bits):
+            raise ValueError("the saved variable order does not match this model's bits")
+        self.bdd.declare(*(variable_order(model, self.bits) if order is None else order))
         self.true: Function = self.bdd.true
         self.false: Function = self.bdd.false
         self._value_cache: dict[tuple[str, Value], Function] = {}
@@ -114,7 +118,7 @@ class SymbolicModel:
             self._transition(t) for t in model.transitions
         )
         self.by_name = {t.name: t for t in self.transitions}
-        # the static order the variables were declared in (FORCE), before any sifting
+        # the order the variables were declared in (FORCE unless given), before any sifting
         self.initial_order: list[str] = sorted(self.bdd.vars, key=self.bdd.level_of_var)
         self._restricted: dict[tuple[str, frozenset[str]], SymbolicTransition] = {}
         self._bit_owner = {bit: name for name, bits in self.bits.items() for bit in bits}

@@ -76,6 +76,17 @@ def compile_actions(
     return apply
 
 
+def _lazy_guard(t: Transition, extra: Expr | None, index: Mapping[str, int]) -> Predicate:
+    compiled: list[Predicate] = []
+
+    def guard(state: State) -> bool:
+        if not compiled:
+            compiled.append(Semantics._guard(t, extra, index))
+        return compiled[0](state)
+
+    return guard
+
+
 @dataclass(frozen=True, slots=True)
 class CompiledTransition:
     transition: Transition
@@ -99,13 +110,18 @@ class Semantics:
     plans).
     """
 
-    def __init__(self, model: Model, extra_guards: Mapping[str, Expr] | None = None) -> None:
+    def __init__(
+        self, model: Model, extra_guards: Mapping[str, Expr] | None = None, lazy: bool = False
+    ) -> None:
+        """`lazy`: compile each guard when it is first asked (a planner of a model of
+        thousands of transitions asks few of them; the runner asks them all every tick)."""
         self.model = model
         index = model.variable_index
         extra = extra_guards or {}
+        guard = _lazy_guard if lazy else self._guard
         self.transitions: tuple[CompiledTransition, ...] = tuple(
             CompiledTransition(
-                t, self._guard(t, extra.get(t.name), index), compile_actions(t.actions, index)
+                t, guard(t, extra.get(t.name), index), compile_actions(t.actions, index)
             )
             for t in model.transitions
         )

@@ -30,8 +30,10 @@ from planner.model.expressions import (
     Or,
     SameValue,
     Value,
+    variables_of,
 )
 from planner.model.flat import Transition
+from planner.planning.relevance import cone_of_influence
 
 Boxes = dict[str, set[Value]]
 
@@ -99,8 +101,16 @@ def goal_may_hold(
     transitions: Iterable[Transition],
     always: Expr | None = None,
 ) -> bool:
-    """Whether `goal` may hold in some state reachable from `start`; False proves it cannot."""
-    boxes = boxes_reached(start, tuple(transitions), always)
+    """Whether `goal` may hold in some state reachable from `start`; False proves it cannot.
+
+    Only the transitions that write the goal's cone of influence are fired (what it and
+    `always` read, and what the guards and sources of those transitions read): the boxes of
+    the cone depend on nothing else, and a goal over one cell of thousands asks few."""
+    every = tuple(transitions)
+    seeds = variables_of(goal) | (frozenset() if always is None else variables_of(always))
+    cone = cone_of_influence(seeds, every, start)
+    relevant = tuple(t for t in every if not cone.isdisjoint(a.target for a in t.actions))
+    boxes = boxes_reached(start, relevant, always)
     return may_hold(goal, boxes)[0]
 
 

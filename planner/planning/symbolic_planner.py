@@ -83,7 +83,7 @@ class SymbolicPlanner:
         self.tuned = False
         self.model = sym.model
         self.structure = Structure(sym.model)
-        self.semantics = Semantics(sym.model)
+        self.semantics = Semantics(sym.model, lazy=True)
         self.good = ~bad & sym.valid
         self._usable: dict[tuple[frozenset[str], bool], tuple[SymbolicTransition, ...]] = {}
         self._automatic: dict[frozenset[str], Function] = {}

@@ -7,7 +7,7 @@ default; `sat`: incremental SAT bounded model checking, the papers' method).
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from functools import cached_property
 from typing import TYPE_CHECKING
 
@@ -76,7 +76,8 @@ the states bad for each specification alone."""
 
 
 class TransitionPlanner:
-    """Built once per model; `restore` skips synthesis with a saved supervisor (see `saved`)."""
+    """Built once per model; `restore` skips synthesis with a saved supervisor (see `saved`),
+    `order` computing the static order when a saved, tuned one is at hand."""
 
     def __init__(
         self,
@@ -84,14 +85,15 @@ class TransitionPlanner:
         engine: str = "bdd",
         restore: Restore | None = None,
         reductions: Reductions = ALL_REDUCTIONS,
+        order: Sequence[str] | None = None,
     ) -> None:
         if engine not in ENGINES:
             raise ValueError(f"unknown engine '{engine}'; use one of {', '.join(ENGINES)}")
         self.model = model
         self.engine = engine
-        self.sym = SymbolicModel(model)
-        check_dynamics(self.sym)
-        if restore is None:
+        self.sym = SymbolicModel(model, order)
+        if restore is None:  # a saved supervisor was saved by a build of the same text
+            check_dynamics(self.sym)  # and code that checked it (supervisor_cache.key)
             self.bad_by_specification = bad_by_specification(self.sym)
             parts = bad_parts(self.sym, self.bad_by_specification)
             self.bad = bad_states(self.sym, parts)

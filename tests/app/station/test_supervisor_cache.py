@@ -9,13 +9,13 @@ from pathlib import Path
 import pytest
 import yaml
 
-from app.station import supervisor_cache
+from app.station import model_cache, supervisor_cache
 from bench import family
 from planner.model.expression_text import parse_expr
 from planner.planning.query import PlanQuery
 from planner.planning.transition_planner import TransitionPlanner
-from planner.reading import load_station
-from planner.reading.yaml_reader import scope_for
+from planner.reading import load_model, load_station
+from planner.reading.yaml_reader import ModelError, scope_for
 from tests.support.attacks import poison_cache
 from tests.support.paths import MINI_STATION
 
@@ -81,10 +81,32 @@ def test_a_file_in_place_of_the_directory_only_costs_time(tmp_path: Path) -> Non
     assert plan(blocked) == plan(None)
 
 
-def test_the_key_depends_on_the_text() -> None:
+def test_the_key_depends_on_the_text_and_the_planners_code(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A restored planner skips what the build that saved it did (checking the dynamics,
+    synthesis): only the same text under the same code may find it."""
     text = MINI.read_text()
     assert supervisor_cache.key(text) == supervisor_cache.key(text)
     assert supervisor_cache.key(text) != supervisor_cache.key(text + "\n# changed\n")
+    before = supervisor_cache.key(text)
+    monkeypatch.setattr(model_cache, "code_digest", lambda: "another planner")
+    assert supervisor_cache.key(text) != before
+
+
+def test_a_model_whose_automatics_cycle_is_refused_and_never_saved(tmp_path: Path) -> None:
+    cycling = """
+variables:
+  - {name: a, domain: bool}
+transitions:
+  - {name: up, kind: automatic, guard: "!a", actions: ["a := true"]}
+  - {name: down, kind: automatic, guard: "a", actions: ["a := false"]}
+"""
+    model = load_model(cycling, "cycle.yaml")
+    for _ in range(2):  # refused each time: nothing was saved to skip the check with
+        with pytest.raises(ModelError, match="cycle forever"):
+            supervisor_cache.planner(model, cycling, "bdd", tmp_path)
+    assert entries(tmp_path) == []
 
 
 def test_the_order_chosen_for_search_is_saved_and_plans_exactly_like_any_other(
@@ -112,6 +134,7 @@ def test_the_order_chosen_for_search_is_saved_and_plans_exactly_like_any_other(
 
     restored = supervisor_cache.planner(model, text, "bdd", tmp_path)
     assert restored.tuned and restored.order() == entry["order"]
+    assert restored.sym.initial_order == entry["order"]  # declared so: no static order made
     results = [restored.plan(q) for q in queries]
     assert results == expected
     assert [r.states for r in results] == [r.states for r in expected]
