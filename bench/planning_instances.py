@@ -21,16 +21,17 @@ ROOT = Path(__file__).resolve().parent.parent
 DEMO = ROOT / "models" / "demo_station.yaml"
 
 PEAK = Target("peak < 300 MB")
-TARGETS = {  # the issue's targets, by instance key
-    "b6r2": Target("< 0.3 s", seconds=0.3),
-    "b8r2": Target("< 1 s, < 200 MB (issue: st_B8_R2)", seconds=1.0, megabytes=200),
+TARGETS = {  # issue 27's targets (issue 11's were < 0.3 s for B=6 R=2, < 1 s and < 2 s for the
+    # demo's goals, < 1 s for one cell's plan), by instance key; 300 MB everywhere
+    "b6r2": Target("< 1 s", seconds=1.0),
+    "b8r2": Target("< 5 s", seconds=5.0),
     "demo-synthesis": Target("< 2 s, < 300 MB", seconds=2.0),
-    "demo-tighten": Target("< 1 s", seconds=1.0),
-    "demo-assemble": Target("< 2 s", seconds=2.0),
+    "demo-tighten": Target("< 5 s", seconds=5.0),
+    "demo-assemble": Target("< 8 s", seconds=8.0),
     "cells1k-synthesis": Target("< 10 s", seconds=10.0),
     "cells1k-plan": Target("< 1 s", seconds=1.0),
     "cells10k-synthesis": Target("< 10 s", seconds=10.0),
-    "cells10k-plan": Target("< 1 s", seconds=1.0),
+    "cells10k-plan": Target("< 2 s (whole sp plan, warm)", seconds=2.0),
 }
 # every tool on small family rows, a target row, and the cells (the demo's synthesis alone takes
 # longer than the whole quick run should)

@@ -18,7 +18,6 @@ else.
 
 from __future__ import annotations
 
-import functools
 import gc
 import hashlib
 import hmac
@@ -29,7 +28,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-import planner
+from app.station.supervisor_cache import cache_key, code_digest
 from planner.model.station import Station
 from planner.reading import load_station
 
@@ -38,17 +37,6 @@ SUFFIX = ".station.pickle"
 SEAL = hashlib.sha256().digest_size
 
 log = logging.getLogger(__name__)
-
-
-@functools.cache
-def code_digest() -> str:
-    """A SHA-256 of every source file of `planner/` (read once per process, ~5 ms)."""
-    root = Path(planner.__file__).resolve().parent
-    digest = hashlib.sha256()
-    for path in sorted(root.rglob("*.py")):
-        digest.update(path.relative_to(root).as_posix().encode() + b"\0")
-        digest.update(path.read_bytes())
-    return digest.hexdigest()
 
 
 def entry_name(text: str, file: str) -> str:
@@ -63,8 +51,6 @@ def entry_name(text: str, file: str) -> str:
 def load(text: str, file: str, directory: Path | None) -> Station:
     """The station `text` describes, from the cache when a sealed entry for it is there;
     `ModelError` (nothing kept) when the text has problems, as `load_station` says them."""
-    from app.station.supervisor_cache import cache_key
-
     secret = None if directory is None else cache_key("model cache")
     if directory is None or secret is None:
         return load_station(text, file)

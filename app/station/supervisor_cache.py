@@ -6,7 +6,7 @@ on the model's text.  The cache keeps, per model text, the BDD variable order an
 (JSON), the bad states (CUDD's DDDMP format) and the states bad for each specification
 alone (`planner.bdd.data`'s JSON, which holds many named roots and reads fast), keyed by a
 SHA-256 of the text, the `dd` version, this format's number and the planner's code
-(`model_cache.code_digest`): an entry stands for a build that checked the model's dynamics
+(`code_digest`): an entry stands for a build that checked the model's dynamics
 and synthesised, which a restored planner does not do again.  Once the first plan has chosen
 the order for search (`TransitionPlanner.tuned`), `remember_order` saves that order instead.
 A tuned order is declared at once when the planner is built.  Anything missing, unreadable
@@ -22,6 +22,7 @@ cache's, not one station's, so the stations and `sp` commands of one account sha
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import hmac
 import json
@@ -31,6 +32,7 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
+import planner as planner_package
 from planner.bdd.data import from_data, to_data
 from planner.bdd.symbolic import Function, SymbolicModel
 from planner.model.flat import Model
@@ -40,6 +42,7 @@ FORMAT = 4  # 2: the states bad for each specification are saved too; 3: as bdd_
 
 log = logging.getLogger(__name__)
 SEALED = ("order", "bad_sha256", "specs_sha256", "tuned")
+PLANNER_SOURCES = Path(planner_package.__file__).resolve().parent
 
 
 class Unsealed(ValueError):
@@ -97,12 +100,21 @@ def _read_entry(path: Path, secret: bytes, name: str) -> dict[str, Any]:
     return entry
 
 
+@functools.cache
+def code_digest() -> str:
+    """A SHA-256 of every source file of `planner/` (read once per process, ~5 ms)."""
+    root = PLANNER_SOURCES
+    digest = hashlib.sha256()
+    for path in sorted(root.rglob("*.py")):
+        digest.update(path.relative_to(root).as_posix().encode() + b"\0")
+        digest.update(path.read_bytes())
+    return digest.hexdigest()
+
+
 def key(text: str) -> str:
     import dd
 
     digest = hashlib.sha256()
-    from app.station.model_cache import code_digest
-
     header = f"sequence-planner supervisor {FORMAT} dd {dd.__version__} {code_digest()}\n"
     digest.update(header.encode())
     digest.update(text.encode())

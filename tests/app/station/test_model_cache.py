@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from app.station import model_cache
+from app.station import model_cache, supervisor_cache
 from planner.model.expression_text import parse_expr
 from planner.planning.query import PlanQuery
 from planner.planning.transition_planner import TransitionPlanner
@@ -61,13 +61,13 @@ def test_an_entry_is_for_one_text_one_name_and_this_code(tmp_path: Path) -> None
     name = model_cache.entry_name(text, "mini")
     assert model_cache.entry_name(text + "\n", "mini") != name
     assert model_cache.entry_name(text, "model version 2") != name
-    model_cache.code_digest.cache_clear()
+    supervisor_cache.code_digest.cache_clear()
     try:
         with pytest.MonkeyPatch.context() as patch:
             patch.setattr(model_cache, "FORMAT", model_cache.FORMAT + 1)
             assert model_cache.entry_name(text, "mini") != name
     finally:
-        model_cache.code_digest.cache_clear()
+        supervisor_cache.code_digest.cache_clear()
     model_cache.load(text, "mini", tmp_path / "cache")
     (entry,) = (tmp_path / "cache").iterdir()
     assert entry.name == name + model_cache.SUFFIX

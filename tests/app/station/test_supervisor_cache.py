@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from app.station import model_cache, supervisor_cache
+from app.station import supervisor_cache
 from bench import family
 from planner.model.expression_text import parse_expr
 from planner.planning.query import PlanQuery
@@ -90,7 +90,7 @@ def test_the_key_depends_on_the_text_and_the_planners_code(
     assert supervisor_cache.key(text) == supervisor_cache.key(text)
     assert supervisor_cache.key(text) != supervisor_cache.key(text + "\n# changed\n")
     before = supervisor_cache.key(text)
-    monkeypatch.setattr(model_cache, "code_digest", lambda: "another planner")
+    monkeypatch.setattr(supervisor_cache, "code_digest", lambda: "another planner")
     assert supervisor_cache.key(text) != before
 
 
