@@ -54,6 +54,9 @@ class Outcome:
     layers: int = 0
     reached: Function | None = field(default=None, compare=False)
     exhausted: bool = False  # no state needed the whole budget: a larger one cannot help
+    # the layers searched, per depth and count: a search of the same problem with a larger
+    # budget reuses them (`search`'s `known`)
+    kept: tuple[tuple[Function, ...], ...] = field(default=(), compare=False, repr=False)
 
 
 Layer = list[Function]  # one set per number of counted steps taken, 0 .. budget
@@ -62,13 +65,22 @@ _Hit = tuple[int, int, int, Function]  # cost, counted steps, depth, the states 
 CANONICAL_ROUNDS = 3
 
 
-def search(sym: SymbolicModel, problem: Problem) -> Outcome:
+def search(
+    sym: SymbolicModel,
+    problem: Problem,
+    known: Sequence[Sequence[Function]] = (),
+    keep: bool = False,
+) -> Outcome:
     """Breadth-first from the start; the first layer meeting the goal gives the plan.
 
     With counted steps, the plan of least cost (ties: fewer counted steps): a hit found at
     depth k with j counted steps costs k + (cost - 1) j, and is kept until no layer with
     fewer counted steps can still reach the goal as cheaply (those layers grow only from
-    themselves, one step deeper per layer).
+    themselves, one step deeper per layer).  `known`: the layers (`Outcome.kept`) of this
+    problem searched with a smaller budget; the states first reached with j counted steps
+    depend only on those reached with j or fewer, so those counts are taken from it as far
+    as it goes, and only the larger counts are imaged.  `keep`: return the layers in
+    `Outcome.kept` (otherwise they are freed with the search).
     """
     budget = problem.budget
     plain = tuple(t for t in problem.transitions if t.name not in problem.counted)
@@ -88,7 +100,7 @@ def search(sym: SymbolicModel, problem: Problem) -> Outcome:
         ):
             _, count, at, hit = best
             plan = _walk(sym, problem, layers[: at + 1], count, hit)
-            return Outcome(True, plan, at + 1, seen[-1])
+            return Outcome(True, plan, at + 1, seen[-1], kept=_kept(layers, keep))
         if depth >= problem.max_steps:
             break
         sources = [
@@ -97,7 +109,8 @@ def search(sym: SymbolicModel, problem: Problem) -> Outcome:
             cudd.restrict(states, states | ~seen[j]) & problem.always
             for j, states in enumerate(layers[-1])
         ]
-        frontier = _next_layer(sym, problem, sources, seen, plain, counted)
+        depth_known = known[depth + 1] if depth + 1 < len(known) else ()
+        frontier = _next_layer(sym, problem, sources, seen, plain, counted, depth_known)
         if counted and not escaped:
             outside = image(sym, problem, sources[budget], counted) & problem.allowed & ~seen[-1]
             escaped = outside != false
@@ -107,7 +120,17 @@ def search(sym: SymbolicModel, problem: Problem) -> Outcome:
                 continue
             break  # fixpoint: the goal is unreachable at any length
         layers.append(frontier)
-    return Outcome(False, layers=len(layers), reached=seen[-1], exhausted=not escaped)
+    return Outcome(
+        False,
+        layers=len(layers),
+        reached=seen[-1],
+        exhausted=not escaped,
+        kept=_kept(layers, keep),
+    )
+
+
+def _kept(layers: list[Layer], keep: bool) -> tuple[tuple[Function, ...], ...]:
+    return tuple(tuple(layer) for layer in layers) if keep else ()
 
 
 def _best_hit(
@@ -141,11 +164,18 @@ def _next_layer(
     seen: list[Function],
     plain: Sequence[SymbolicTransition],
     counted: Sequence[SymbolicTransition],
+    known: Sequence[Function] = (),
 ) -> Layer:
     """The states first reached one step deeper, per number of counted steps taken (a
-    counted step moves a state up one count); `seen` grows by them."""
+    counted step moves a state up one count; the first counts as `known` when given);
+    `seen` grows by them."""
     frontier: Layer = []
     for j in range(problem.budget + 1):
+        if j < len(known):
+            frontier.append(known[j])
+            for k in range(j, problem.budget + 1):
+                seen[k] |= known[j]
+            continue
         found = image(sym, problem, sources[j], plain)
         if j > 0:
             found |= image(sym, problem, sources[j - 1], counted)

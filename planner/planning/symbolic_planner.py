@@ -394,9 +394,11 @@ class SymbolicPlanner:
             t.name for t in problem.transitions if t.kind is TransitionKind.MAINTENANCE
         )
         layers = 0
+        known: Sequence[Sequence[Function]] = ()
         for budget in range(1, query.max_steps + 1):  # most plans need one, or none
             weighted = replace(problem, counted=counted, budget=budget, cost=query.maintenance_cost)
-            outcome = search(self.sym, weighted)
+            outcome = search(self.sym, weighted, known, keep=True)  # reused by the next budget
+            known = outcome.kept
             layers += outcome.layers
             if outcome.exhausted:
                 break
@@ -406,7 +408,8 @@ class SymbolicPlanner:
                 (budget + 1) * query.maintenance_cost
             ):
                 break
-        return _Part(variables, outcome.plan, replace(outcome, layers=layers), problem.variables)
+        outcome = replace(outcome, layers=layers, kept=())
+        return _Part(variables, outcome.plan, outcome, problem.variables)
 
     def problem(
         self, query: PlanQuery, sets: _Sets, variables: frozenset[str], goal: Function
