@@ -120,13 +120,8 @@ def search(
                 continue
             break  # fixpoint: the goal is unreachable at any length
         layers.append(frontier)
-    return Outcome(
-        False,
-        layers=len(layers),
-        reached=seen[-1],
-        exhausted=not escaped,
-        kept=_kept(layers, keep),
-    )
+    kept = _kept(layers, keep)
+    return Outcome(False, layers=len(layers), reached=seen[-1], exhausted=not escaped, kept=kept)
 
 
 def _kept(layers: list[Layer], keep: bool) -> tuple[tuple[Function, ...], ...]:
