@@ -668,6 +668,14 @@ def test_sat_refuses_relaxed_queries() -> None:
 # --------------------------------------------------------------------------- maintenance cost
 
 
+def weigh_maintenance(data: st.DataObject, q: dict[str, Any]) -> dict[str, Any]:
+    """`q` with maintenance weighed 2, 3 or 10 and a bound that may be tight (the cheapest
+    plan may then not fit, and a dearer one must be found)."""
+    bound = data.draw(st.sampled_from([q["max_steps"], 3, 4, 5, 6]))
+    cost = data.draw(st.sampled_from([2, 3, 10]))
+    return {**q, "maintenance": True, "maintenance_cost": cost, "max_steps": bound}
+
+
 @settings(SETTINGS, max_examples=60)
 @given(data=st.data())
 def test_weighted_maintenance_plans_like_the_oracle_under_every_reduction(
@@ -678,11 +686,7 @@ def test_weighted_maintenance_plans_like_the_oracle_under_every_reduction(
     if case is None:
         return
     for _ in range(QUERIES_PER_MODEL):
-        q = data.draw(SS.component_queries(structured))
-        # tight bounds: the cheapest plan may then not fit, and a dearer one must be found
-        bound = data.draw(st.sampled_from([q["max_steps"], 3, 4, 5, 6]))
-        cost = data.draw(st.sampled_from([2, 3, 10]))
-        q = {**q, "maintenance": True, "maintenance_cost": cost, "max_steps": bound}
+        q = weigh_maintenance(data, data.draw(SS.component_queries(structured)))
         results = plan_everywhere(case, q)
         check_structure(case, q, results)
         plain = O.plan(

@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from planner.model.flat import TransitionKind
 from planner.planning.search import Outcome, search
-from tests.planner.test_reductions import SETTINGS, make_case
+from tests.planner.test_reductions import SETTINGS, make_case, weigh_maintenance
 from tests.support import strategies_structured as SS
 
 
@@ -24,9 +24,7 @@ def test_a_search_that_reuses_a_smaller_budgets_layers_is_the_fresh_search(
     case = make_case(structured.model)
     if case is None:
         return
-    q = data.draw(SS.component_queries(structured))
-    cost = data.draw(st.sampled_from([2, 3, 10]))
-    q = {**q, "maintenance": True, "maintenance_cost": cost}
+    q = weigh_maintenance(data, data.draw(SS.component_queries(structured)))
     planner = case.planners["default"]
     symbolic = planner._search
     query = case.query(q)
@@ -36,10 +34,10 @@ def test_a_search_that_reuses_a_smaller_budgets_layers_is_the_fresh_search(
     counted = frozenset(t.name for t in problem.transitions if t.kind is TransitionKind.MAINTENANCE)
     before: Outcome | None = None
     for budget in (1, 2, 3):
-        weighted = replace(problem, counted=counted, budget=budget, cost=cost)
-        fresh = search(planner.sym, weighted, keep=True)
+        bigger = replace(problem, counted=counted, budget=budget, cost=q["maintenance_cost"])
+        fresh = search(planner.sym, bigger, keep=True)
         if before is not None:
-            reused = search(planner.sym, weighted, before.kept, keep=True)
+            reused = search(planner.sym, bigger, before.kept, keep=True)
             assert reused == fresh  # found, plan, layers, exhausted
             assert reused.kept == fresh.kept  # every layer, each count, the same set
             assert reused.reached == fresh.reached
