@@ -56,18 +56,23 @@ def startable(tick: Tick, plan: TransitionPlan) -> list[int]:
 
 def stuck(tick: Tick, plan: TransitionPlan, what: str) -> bool:
     """Nothing the plan waits for can happen any more: no block's turn has come and no
-    effect or automatic step it expects is enabled.  A person's step that was under way
+    effect or automatic step it expects is enabled (an effect that timed out counts as not
+    enabled: it is disabled in planning).  A person's step that was under way
     when the plan was made can end before its block is taken; the plan would wait for it
     for ever.  Recovery and maintenance plans, which have no deviation check, use this to
     be made again; a stuck plan is said (a `blocked` event about `what`)."""
     if startable(tick, plan) or not plan.expected():
         return False
     current = tick.current()
-    unavailable = tick.state.unavailable
+    state = tick.state
     for name in plan.expected():
         owner = tick.index.station.owner_of(name)
-        if owner in unavailable or tick.index.transition(name).guard(current):
+        if owner in state.unavailable:
             return False  # it may yet happen (a resource may answer again)
+        if name not in state.timed_out and tick.index.transition(name).guard(current):
+            return False  # it may yet happen; one that timed out is disabled in planning,
+            # so a plan made again goes without it (and waits again only once it is
+            # re-enabled or seen to happen)
     waits = ", ".join(sorted(plan.expected()))
     tick.emit(EventKind.BLOCKED, what, why=f"{waits} can no longer happen")
     return True

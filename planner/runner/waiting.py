@@ -62,16 +62,8 @@ def _stopped(runner: Runner, state: RunnerState) -> list[Waiting]:
             Waiting(Who.ENGINEER, "automatic transitions", f"{state.halted}: the model needs a fix")
         )
     violated = runner.semantics.violated(runner.index.as_state(state.values))
-    if violated and state.recovery is None:
-        names = ", ".join(violated)
-        out.append(
-            Waiting(
-                Who.ENGINEER,
-                names,
-                f"forbidden state, broken: {names}; no recovery plan without the rejected "
-                "steps: put it right in restart mode",
-            )
-        )
+    if violated:
+        out.append(_forbidden(runner, state, ", ".join(violated)))
     for effect in sorted(state.timed_out):
         owner = runner.station.owner_of(effect)
         on = f" on {owner}" if owner else ""
@@ -85,6 +77,41 @@ def _stopped(runner: Runner, state: RunnerState) -> list[Waiting]:
     if state.restart_mode:
         out.append(Waiting(Who.ENGINEER, "restart mode", "leave restart mode when it is done"))
     return out
+
+
+def _forbidden(runner: Runner, state: RunnerState, names: str) -> Waiting:
+    """The forbidden state, named whenever the station is in one: with no recovery plan
+    it is the engineer's; with one, it is whoever that plan waits on first (an approval or
+    a person's step: the operator; otherwise the devices that move).  A recovery that waits
+    on an effect that timed out is made again (`following.stuck`), never waited on."""
+    recovery = state.recovery
+    if recovery is None:
+        return Waiting(
+            Who.ENGINEER,
+            names,
+            f"forbidden state, broken: {names}; no recovery plan without the rejected "
+            "steps: put it right in restart mode",
+        )
+    index = runner.index
+    people = sorted(
+        (recovery.asked - recovery.approved)
+        | {
+            k
+            for k in recovery.approved - recovery.taken
+            if index.kind_of(recovery.blocks[k].transition) is TransitionKind.MAINTENANCE
+            or recovery.blocks[k].transition in index.person_transitions
+        }
+    )
+    if people:
+        step = recovery.blocks[people[0]].transition
+        return Waiting(
+            Who.OPERATOR,
+            names,
+            f"forbidden state, broken: {names}; the recovery waits on step {people[0] + 1}: {step}",
+        )
+    effects = sorted(recovery.expected())
+    doing = f"waits for {', '.join(effects)}" if effects else "is under way"
+    return Waiting(Who.DEVICE, names, f"forbidden state, broken: {names}; the recovery {doing}")
 
 
 def _people(runner: Runner, state: RunnerState) -> list[Waiting]:
@@ -129,8 +156,8 @@ def _devices(runner: Runner, state: RunnerState) -> list[Waiting]:
             if index.kind_of(effect) is not TransitionKind.EFFECT:
                 continue
             owner = index.station.owner_of(effect)
-            if owner in state.unavailable:
-                continue  # said above
+            if owner in state.unavailable or effect in state.timed_out:
+                continue  # said above, or the engineer's (`_stopped`): nobody waits on it
             who = Who.OPERATOR if effect in index.person_effects else Who.DEVICE
             described = index.model.transition(effect).description
             what = described or f"{owner or 'a device'} to report: {effect}"

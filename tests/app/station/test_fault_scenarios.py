@@ -81,6 +81,9 @@ def test_a_fault_scenario_ends_as_a_good_station_would(
         for item, want in zip(waiting, wanted, strict=True):
             assert (item["who"], item["subject"]) == (want["who"], want["subject"]), item
             assert want["says"] in item["what"], item["what"]
+        # nothing is waited on that timed out: that is the engineer's, said once
+        late = {w["subject"] for w in waiting if "did not happen in time" in w["what"]}
+        assert not [w for w in waiting if w["who"] != "engineer" and w["subject"] in late]
         # quiet: the station settled long before the time limit and asked nothing since
         activity = (EventKind.PLAN, EventKind.OPERATION, EventKind.INTENTION)
         settled = max(e.time for e in events if e.kind in activity)
