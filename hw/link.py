@@ -16,7 +16,9 @@ class LinkStatus:
 
     `latency_ms`: the last request's round trip (or the data's age on arrival for streams);
     `last_data`: when the last good data arrived; `error`: why it is not connected, in plain
-    words ("" when it is); `restarts`: how often the driver had to start its link again.
+    words ("" when it is); `restarts`: how often the driver had to start its link again;
+    `device_restarts`: how often the device restarted behind an open link (every command
+    was then sent again), the last time because of `device_restart`.
     """
 
     connected: bool
@@ -24,3 +26,5 @@ class LinkStatus:
     last_data: float | None = None
     error: str = ""
     restarts: int = 0
+    device_restarts: int = 0
+    device_restart: str = ""

@@ -205,6 +205,8 @@ class StationDevices:
                 "data_age": None if link.last_data is None else round(clock - link.last_data, 3),
                 "error": link.error,
                 "restarts": link.restarts,
+                "device_restarts": link.device_restarts,
+                "device_restart": link.device_restart,
             }
             for name, link in self.links().items()
         }

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import replace
 from typing import Protocol
 
 from hw.adapter import AdapterReport, Driver
@@ -91,9 +92,7 @@ class RegisterAdapter:
     def status(self) -> LinkStatus:
         status = self.driver.status()
         if self.nonsense:
-            return LinkStatus(
-                False, status.latency_ms, status.last_data, self.nonsense, status.restarts
-            )
+            return replace(status, connected=False, error=self.nonsense)
         return status
 
 

@@ -20,6 +20,13 @@ each failure, up to a second) and the device is available again after its next g
 
 A heartbeat point (a counter the device advances while its logic runs) makes a device
 whose logic froze unavailable too, although it still answers.
+
+A device can also restart behind an open connection (a power cycle of the tool while the
+gateway stays up, a PLC going STOP -> RUN): its commands fall back to their power-on values
+and a driver that writes only what changed would never send them again.  So every round
+reads back the commanded points too; a heartbeat that counted back, or a command that no
+longer reads what was written, means the device restarted: every command is written again
+at once, and the status counts it (`LinkStatus.device_restarts`, with the reason).
 """
 
 from __future__ import annotations
@@ -142,6 +149,8 @@ class ModbusDriver:
         self._latency_ms: float | None = None
         self._error = "not started"
         self._restarts = 0
+        self._device_restarts = 0
+        self._restart_reason = ""
         self._beat: tuple[Value, float] | None = None  # heartbeat value, when it changed
         self._loop: asyncio.AbstractEventLoop | None = None
         self._task: asyncio.Task[None] | None = None
@@ -207,6 +216,8 @@ class ModbusDriver:
                 last_data=self._last_good,
                 error=error,
                 restarts=self._restarts,
+                device_restarts=self._device_restarts,
+                device_restart=self._restart_reason,
             )
 
     def _judge(self, now: float) -> str:
@@ -327,7 +338,28 @@ class ModbusDriver:
             self._refused(answer, f"reading {request}")
             values.update(self._values(request, answer))
         received = time.monotonic()
+        restarted = self._restarted(values)
+        if restarted:
+            self._written.clear()  # written again at the start of the next round
+            with self._lock:
+                self._device_restarts += 1
+                self._restart_reason = restarted
+            loop = asyncio.get_running_loop()
+            loop.call_soon(self._poke)
         self._store(values, sent, received)
+
+    def _restarted(self, values: Mapping[Point, Value]) -> str:
+        """Why the device seems to have restarted since the last round ("" if it does not):
+        its heartbeat counted back (modulo 2^16: a wrap is counting on), or a command it
+        had taken reads another value (the device's logic never writes commands)."""
+        if self.heartbeat is not None and self._beat is not None:
+            before, now = int(self._beat[0]), int(values[self.heartbeat])
+            if (now - before) & 0xFFFF > 0x8000:
+                return f"its heartbeat counted back from {before} to {now}"
+        for point, value in self._written.items():
+            if point in values and values[point] != value:
+                return f"{point} read {values[point]!r} after {value!r} was written"
+        return ""
 
     async def _ask(self, call: Any, *args: Any, **kwargs: Any) -> ModbusPDU:
         try:

@@ -158,6 +158,38 @@ def test_levels_are_written_again_after_a_reconnect(
     assert tc.status().restarts >= 1
 
 
+@pytest.mark.parametrize("beat", [True, False], ids=["heartbeat", "read-back"])
+def test_a_device_that_restarts_behind_an_open_connection_gets_its_commands_again(
+    ask: Callable[..., dict[str, Any]], driver: Callable[..., ModbusDriver], beat: bool
+) -> None:
+    """A power cycle of the tool while the link stays up (issue 28): the commands are back at
+    their power-on values; the driver sees it (its heartbeat counted back, or a command reads
+    another value) and writes every command again, without a reconnect."""
+    options = {} if beat else {"heartbeat": None}
+    tc = driver("tc", **options)
+    tc.write(CONNECTOR.point("unlock"), False)
+    tc.write(CONNECTOR.point("lock"), True)
+    until(lambda: tc.available and named(CONNECTOR, tc)["connected"] is True)
+    time.sleep(0.3)  # a few heartbeats, so that counting back is counting back
+    ask("restart", "tc")
+    until(lambda: ask("state", "tc")["values"]["lock"] is True, timeout=5.0)
+    until(lambda: named(CONNECTOR, tc)["connected"] is True)
+    status = tc.status()
+    assert status.device_restarts >= 1 and status.restarts == 0, status
+    said = "heartbeat counted back" if beat else "was written"
+    assert said in status.device_restart, status.device_restart
+
+
+def test_a_heartbeat_that_wraps_is_counting_on_not_a_restart() -> None:
+    """The counter wraps from 65535 to 0: modulo 2^16 that is a step forward."""
+    heartbeat = CONNECTOR.point("heartbeat")
+    tc = ModbusDriver("tc", HOST, 1, 1, [heartbeat], heartbeat=heartbeat)
+    tc._beat = (65534, 0.0)
+    assert tc._restarted({heartbeat: 3}) == ""
+    tc._beat = (812, 0.0)
+    assert "counted back from 812 to 3" in tc._restarted({heartbeat: 3})
+
+
 def test_write_refuses_read_only_points_and_wrong_values_at_once(
     driver: Callable[..., ModbusDriver],
 ) -> None:
