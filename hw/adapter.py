@@ -24,9 +24,14 @@ from planner.model.expressions import Value
 
 @dataclass
 class AdapterReport:
+    """`cannot_act`: the device answers and its values are trusted, but it cannot act now
+    (a robot in a protective stop, powered off): what a person must do, naming things by
+    their model names ("release r1's protective stop on its teach pendant")."""
+
     measured: dict[str, Value] = field(default_factory=dict)
     observed: dict[str, Value] = field(default_factory=dict)
     alive: bool = False
+    cannot_act: str = ""
 
 
 class Adapter(Protocol):

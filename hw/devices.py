@@ -50,12 +50,14 @@ class DeviceReport:
 
     `measured`: measured variables as the devices report them; `observed`: decision or
     estimated variables a pipeline measures directly (a product tracker); `heartbeats`: the
-    resources that answered.
+    resources that answered; `cannot_act`: resources whose devices answer but cannot act
+    now, with what a person must do (`hw.adapter.AdapterReport.cannot_act`).
     """
 
     measured: Mapping[str, Value] = field(default_factory=dict)
     observed: Mapping[str, Value] = field(default_factory=dict)
     heartbeats: frozenset[str] = frozenset()
+    cannot_act: Mapping[str, str] = field(default_factory=dict)
 
 
 class Devices(Protocol):

@@ -117,6 +117,7 @@ class StationDevices:
         measured: dict[str, Value] = {}
         observed: dict[str, Value] = {}
         alive: dict[str, bool] = {}
+        cannot_act: dict[str, list[str]] = {}
         for each in self.adapters:
             report = each.read()
             measured.update(report.measured)
@@ -124,12 +125,15 @@ class StationDevices:
             resource = each.spec.resource
             if resource:
                 alive[resource] = alive.get(resource, True) and report.alive
+                if report.alive and report.cannot_act:
+                    cannot_act.setdefault(resource, []).append(report.cannot_act)
         if self.world is not None:
             observed.update(self.world.take_observed())
         self.values.update(measured)
         self.values.update(observed)
         heartbeats = frozenset(r for r, ok in alive.items() if ok)
-        return DeviceReport(measured, observed, heartbeats)
+        halted = {r: "; ".join(why) for r, why in cannot_act.items() if r in heartbeats}
+        return DeviceReport(measured, observed, heartbeats - halted.keys(), halted)
 
     def write(self, commands: Mapping[str, Value]) -> None:
         self.values.update(commands)

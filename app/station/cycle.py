@@ -95,7 +95,13 @@ class StationCycle:
         actions = (*self.people_due(now), *actions)
         self.devices.advance(now)
         report = self.devices.read()
-        inputs = Inputs(report.measured, report.observed, report.heartbeats, tuple(actions))
+        inputs = Inputs(
+            report.measured,
+            report.observed,
+            report.heartbeats,
+            tuple(actions),
+            cannot_act=report.cannot_act,
+        )
         result = self.runner.tick(self.state, inputs, now)
         self.state = result.state
         for reply in result.replies:

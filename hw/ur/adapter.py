@@ -9,31 +9,19 @@ from hw.adapter import AdapterReport, Driver
 from hw.device_file.spec import DeviceSpec, RobotRole
 from hw.link import LinkStatus
 from hw.pipelines import UNKNOWN, Nonsense, PoseAndLast, RobotPrograms, track_move
+from hw.ur.robot_state import cannot_move
+from hw.ur.sample import URReading
 from planner.model.expressions import Value
 
 
 class RobotDriver(Driver, Protocol):
     """What a robot adapter needs of its driver (hw.ur.driver.URDriver)."""
 
-    def latest(self) -> RobotSample | None: ...
+    def latest(self) -> URReading | None: ...
 
     def move_j(self, q: tuple[float, ...], speed: float, acceleration: float) -> None: ...
 
     def set_tool(self, tcp: tuple[float, ...], payload_kg: float) -> None: ...
-
-
-class RobotSample(Protocol):
-    @property
-    def q(self) -> tuple[float, ...]: ...
-
-    @property
-    def protective_stop(self) -> bool: ...
-
-    @property
-    def received(self) -> float: ...
-
-    @property
-    def running(self) -> bool: ...
 
 
 class RobotAdapter:
@@ -85,7 +73,8 @@ class RobotAdapter:
             measured[self.roles[RobotRole.POSE]] = self.pose.pos
         if RobotRole.LAST_POSE in self.roles:
             measured[self.roles[RobotRole.LAST_POSE]] = self.pose.last
-        return AdapterReport(measured, alive=True)
+        resource = self.spec.resource or self.spec.name
+        return AdapterReport(measured, alive=True, cannot_act=cannot_move(resource, sample))
 
     def write(self, commands: Mapping[str, Value]) -> None:
         for role in (RobotRole.TOOL, RobotRole.MOVE_TO):

@@ -111,6 +111,8 @@ def held_back(tick: Tick, name: str) -> str:
     state = tick.state
     if name in disabled(tick):
         owner = tick.index.station.owner_of(name)
+        if owner in state.cannot_act:
+            return f"{owner} cannot act: {state.cannot_act[owner]}"
         if owner in state.unavailable:
             return f"{owner} is not answering"
         if name in state.timed_out:

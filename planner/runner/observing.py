@@ -10,6 +10,8 @@ tracker's report of decision variables) are taken as they are.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 from planner.model.expressions import Value
 from planner.runner.retries import failed_attempt, late_effect
 from planner.runner.tick import Tick
@@ -18,7 +20,7 @@ from planner.runner.vocabulary import EventKind, ReplanReason
 
 
 def take_inputs(tick: Tick, inputs: Inputs) -> None:
-    take_heartbeats(tick, inputs.heartbeats)
+    take_heartbeats(tick, inputs.heartbeats, inputs.cannot_act)
     values = tick.state.values
     changed = {
         name: value
@@ -34,10 +36,28 @@ def take_inputs(tick: Tick, inputs: Inputs) -> None:
             tick.emit(EventKind.OBSERVED, name, before=before, after=value)
 
 
-def take_heartbeats(tick: Tick, heartbeats: frozenset[str]) -> None:
+def take_heartbeats(
+    tick: Tick, heartbeats: frozenset[str], cannot_act: Mapping[str, str] | None = None
+) -> None:
+    """A resource is available while it answers within the heartbeat time-out and its
+    devices do not say it cannot act; one that says so (a robot in a protective stop) is
+    unavailable at once, with what a person must do, and available again in the first
+    round it answers without it."""
     state = tick.state
-    for resource in sorted(heartbeats):
+    cannot_act = cannot_act or {}
+    for resource, why in sorted(cannot_act.items()):
+        state.last_heard[resource] = tick.now  # it answers
+        if state.cannot_act.get(resource) == why:
+            continue
+        state.cannot_act[resource] = why
+        if resource not in state.unavailable:
+            state.unavailable.add(resource)
+            tick.availability_changed.add(resource)
+            tick.replan_transitions(ReplanReason.AVAILABILITY)
+        tick.emit(EventKind.UNAVAILABLE, resource, why=why)
+    for resource in sorted(heartbeats - cannot_act.keys()):
         state.last_heard[resource] = tick.now
+        state.cannot_act.pop(resource, None)
         if resource in state.unavailable:
             state.unavailable.discard(resource)
             tick.availability_changed.add(resource)
@@ -46,6 +66,8 @@ def take_heartbeats(tick: Tick, heartbeats: frozenset[str]) -> None:
             tick.replan_transitions(ReplanReason.AVAILABILITY)
     for resource, heard in sorted(state.last_heard.items()):
         late = tick.now - heard > tick.config.heartbeat_timeout
+        if late:
+            state.cannot_act.pop(resource, None)  # silent now: it is not answering at all
         if late and resource not in state.unavailable:
             state.unavailable.add(resource)
             tick.availability_changed.add(resource)

@@ -60,6 +60,7 @@ _ADDED = {
     "reminded": {},
     "announced": [],
     "maintenance_due": False,
+    "cannot_act": {},
 }
 
 T = TypeVar("T")
@@ -117,6 +118,7 @@ def _fields(state: RunnerState) -> dict[str, Any]:
         "reminded": dict(sorted(state.reminded.items())),
         "announced": list(state.announced),
         "maintenance_due": state.maintenance_due,
+        "cannot_act": dict(state.cannot_act),
     }
 
 
@@ -269,13 +271,17 @@ class _Loader:
 
     def added_fields(self, data: Mapping[str, Any]) -> dict[str, Any]:
         """Fields added to format 1 later: late effects, reminders, announced violations,
-        maintenance waiting for the operations to come to rest."""
+        maintenance waiting for the operations to come to rest, resources that cannot act."""
         return {
             "blamed_on_timeouts": self.blamed(data["blamed_on_timeouts"]),
             "resumable": self.names(data["resumable"], "operation", "resumable"),
             "reminded": self.counts(data["reminded"], "transition", "reminded"),
             "announced": tuple(self.steps(data["announced"], "specification", "announced")),
             "maintenance_due": self.check(data["maintenance_due"], bool, "maintenance_due"),
+            "cannot_act": {
+                name: self.check(why, str, f"cannot_act['{name}']")
+                for name, why in self.mapping(data["cannot_act"], "resource", "cannot_act").items()
+            },
         }
 
     def counts(self, raw: Any, what: str, where: str) -> dict[str, int]:

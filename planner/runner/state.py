@@ -159,6 +159,9 @@ class RunnerState:
     maintenance_due: bool = False
     last_heard: dict[str, float] = field(default_factory=dict)  # per resource
     unavailable: set[str] = field(default_factory=set)
+    # resources unavailable because their devices say they cannot act, and what a person
+    # must do (`Inputs.cannot_act`)
+    cannot_act: dict[str, str] = field(default_factory=dict)
     effect_enabled_since: dict[str, float] = field(default_factory=dict)
     timed_out: set[str] = field(default_factory=set)
     reminded: dict[str, int] = field(default_factory=dict)  # a person's effect: reminders sent
@@ -201,6 +204,7 @@ class RunnerState:
             maintenance=_copied(self.maintenance),
             last_heard=dict(self.last_heard),
             unavailable=set(self.unavailable),
+            cannot_act=dict(self.cannot_act),
             effect_enabled_since=dict(self.effect_enabled_since),
             timed_out=set(self.timed_out),
             reminded=dict(self.reminded),

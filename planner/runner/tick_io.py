@@ -52,13 +52,17 @@ class Inputs:
 
     `measured` holds measured variables as devices report them; `observed` holds decision
     or estimated variables that a pipeline measures directly (a product tracker, seed 000
-    sec. 6.4); `heartbeats` names the resources that answered since the last tick.
+    sec. 6.4); `heartbeats` names the resources that answered since the last tick;
+    `cannot_act` the resources whose devices answer but say they cannot act now, each with
+    what a person must do about it (a robot in a protective stop, powered off), in words
+    that name things by their model names.
     """
 
     measured: Mapping[str, Value] = field(default_factory=dict)
     observed: Mapping[str, Value] = field(default_factory=dict)
     heartbeats: frozenset[str] = frozenset()
     actions: tuple[Action, ...] = ()
+    cannot_act: Mapping[str, str] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

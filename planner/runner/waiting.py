@@ -149,7 +149,10 @@ def _devices(runner: Runner, state: RunnerState) -> list[Waiting]:
     """Resources that stopped answering, and the effects the plans wait for."""
     index = runner.index
     out = [
-        Waiting(Who.DEVICE, name, f"{name} to answer again") for name in sorted(state.unavailable)
+        Waiting(Who.OPERATOR, name, state.cannot_act[name])
+        if name in state.cannot_act
+        else Waiting(Who.DEVICE, name, f"{name} to answer again")
+        for name in sorted(state.unavailable)
     ]
     for plan in state.plans_followed():
         for effect in sorted(plan.expected()):

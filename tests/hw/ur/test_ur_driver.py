@@ -22,6 +22,7 @@ from hw.emulator_kit.control import control
 from hw.ur import driver_child
 from hw.ur.driver import URDriver
 from hw.ur.emulator.launch import emulate, free_host, host_range
+from hw.ur.robot_state import cannot_move
 
 HOSTS = host_range(121, 250)
 JOINTS = [0.1, -1.5, 1.4, -1.2, -1.5, 0.2]
@@ -146,6 +147,30 @@ def test_protective_stop_shows_and_commands_fail_until_unlocked(healthy: Station
     healthy.driver.stop_j()
     healthy.driver.move_j(JOINTS, 1.0, 4.0)
     assert until(lambda: healthy.q() == pytest.approx(JOINTS) and healthy.driver.latest().steady)
+
+
+def test_a_robot_that_cannot_move_says_why_from_its_rtde_fields(healthy: Station) -> None:
+    """Protective stop, power off, brakes on: facts of a robot that still answers (issue
+    28), each with what a person does; none once it runs again."""
+
+    def why() -> str:
+        reading = healthy.driver.latest()
+        assert reading is not None
+        return cannot_move("r1", reading)
+
+    assert why() == ""
+    healthy.op(op="protective_stop")
+    assert until(lambda: "protective stop: release it on r1's teach pendant" in why()), why()
+    assert healthy.driver.available  # it answers: a fact, not silence
+    healthy.op(op="protective_stop", on=False)
+    assert until(lambda: why() == ""), why()
+    healthy.op(op="power", on=False)
+    assert until(lambda: "r1 has no power: power it on" in why()), why()
+    healthy.op(op="power", on=True)
+    assert until(lambda: "brakes are on" in why()), why()
+    healthy.op(op="power", on=True, brake_release=True)
+    assert until(lambda: why() == "", timeout=15.0), why()
+    assert healthy.recovered()
 
 
 def test_a_stalled_move_never_finishes(healthy: Station) -> None:

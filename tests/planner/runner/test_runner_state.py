@@ -48,6 +48,7 @@ def _filled() -> RunnerState:
         maintenance_due=True,
         last_heard={"r1": 1.0},
         unavailable={"r1"},
+        cannot_act={"r1": "r1 is in a protective stop: release it on r1's teach pendant"},
         effect_enabled_since={"r1.arrive": 1.0},
         timed_out={"r1.arrive"},
         reminded={"r1.arrive": 1},
