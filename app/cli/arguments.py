@@ -34,9 +34,10 @@ def parser() -> argparse.ArgumentParser:
     run.add_argument(
         "--speed",
         type=float,
-        default=1.0,
+        default=None,
         metavar="X",
-        help="X times real time (default 1); 0 runs as fast as possible",
+        help="X times real time (default 1); 0 runs as fast as possible; not with --devices "
+        "(emulated devices run in real time)",
     )
     run.add_argument(
         "--devices",

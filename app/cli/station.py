@@ -186,6 +186,9 @@ def run(args: argparse.Namespace, observer: QueryObserver | None = None) -> int:
     from app.station.scenario import Scenario, ScenarioError, load_scenario
     from planner.planning.operation_planner import OperationPlanner
 
+    if args.devices and args.speed is not None:
+        raise UsageError("--speed: emulated devices run in real time; leave it out with --devices")
+    args.speed = 1.0 if args.speed is None else args.speed
     if args.speed < 0:
         raise UsageError("--speed must be 0 or more")
     station, text = read_station(args.model, cache=not args.no_cache)
@@ -195,7 +198,9 @@ def run(args: argparse.Namespace, observer: QueryObserver | None = None) -> int:
         except (OSError, UnicodeDecodeError) as exc:
             raise UsageError(f"{args.scenario}: cannot read the scenario: {exc}") from None
         try:
-            scenario = load_scenario(scenario_text, args.scenario, station)
+            scenario = load_scenario(
+                scenario_text, args.scenario, station, devices=bool(args.devices)
+            )
         except ScenarioError as exc:
             raise UsageError(str(exc)) from None
     else:

@@ -15,7 +15,7 @@ from typing import Any
 import yaml
 
 from app.station.cycle import ScheduledAction, ScheduledFault
-from hw.faults import FAULTS, Fault, FaultKind
+from hw.faults import DEVICE_FAULTS, FAULTS, Fault, FaultKind
 from planner.model.expression_text import parse_expr
 from planner.model.expressions import Expr, Value
 from planner.model.station import Station
@@ -58,7 +58,22 @@ _CONFIG_KEYS = (
     "max_steps",
     "sequential",
 )
-_FAULT_KEYS = ("at", "when", "after", "kind", "resource", "effect", "instead", "count", "values")
+_FAULT_KEYS = (
+    "at",
+    "when",
+    "after",
+    "kind",
+    "resource",
+    "effect",
+    "instead",
+    "count",
+    "values",
+    "on",
+    "release",
+    "offset",
+    "name",
+    "value",
+)
 # what people do at given times: (action, the keys it takes besides at/when/do/user)
 _ACTIONS: dict[str, tuple[type[Action], tuple[str, ...]]] = {
     "start_intention": (StartIntention, ("name",)),
@@ -120,8 +135,11 @@ class _Problem(Exception):
         self.text = text
 
 
-def load_scenario(text: str, file: str, station: Station) -> Scenario:
-    """Read a scenario; a problem is reported as `file:line:column: entry: what is wrong`."""
+def load_scenario(text: str, file: str, station: Station, *, devices: bool = False) -> Scenario:
+    """Read a scenario; a problem is reported as `file:line:column: entry: what is wrong`.
+
+    `devices`: it is played on emulated devices, where device-level faults (a protective
+    stop, a power cycle, ...) can be played; without, such a fault is a located error."""
     try:
         root = yaml.compose(text)
         data = yaml.safe_load(text) or {}
@@ -131,7 +149,7 @@ def load_scenario(text: str, file: str, station: Station) -> Scenario:
         problem = getattr(exc, "problem", None) or str(exc)
         raise ScenarioError(f"{where}: not valid YAML: {problem}") from None
     try:
-        return _read(data, file, station)
+        return _read(data, file, station, devices)
     except _Problem as problem:
         line, column = _locate(root, problem.path)
         entry = "".join(
@@ -187,7 +205,7 @@ def _sequence(value: Any, path: Path, what: str) -> list[Any]:
     return value
 
 
-def _read(data: Any, file: str, station: Station) -> Scenario:
+def _read(data: Any, file: str, station: Station, devices: bool = False) -> Scenario:
     if not isinstance(data, dict):
         raise _Problem((), f"a scenario is a mapping with keys {', '.join(_KEYS)}")
     _known((), "scenario", data, _KEYS)
@@ -196,7 +214,7 @@ def _read(data: Any, file: str, station: Station) -> Scenario:
     config = _read_config(data.get("config"), station, intentions)
     delays, default_delay = _read_delays(data.get("delays"), station)
     scope = scope_for(station.model.domains, station.predicates)
-    faults = _read_faults(data.get("faults"), station, scope)
+    faults = _read_faults(data.get("faults"), station, scope, devices)
     actions = tuple(
         _read_action(("actions", k), entry, scope)
         for k, entry in enumerate(_sequence(data.get("actions"), ("actions",), "actions"))
@@ -289,14 +307,18 @@ def _read_delays(raw: Any, station: Station) -> tuple[dict[str, float], float]:
     return delays, float(delays.pop("default", 1.0))
 
 
-def _read_faults(raw: Any, station: Station, scope: Any) -> tuple[ScheduledFault, ...]:
+def _read_faults(
+    raw: Any, station: Station, scope: Any, devices: bool
+) -> tuple[ScheduledFault, ...]:
     return tuple(
-        _read_fault(("faults", k), entry, station, scope)
+        _read_fault(("faults", k), entry, station, scope, devices)
         for k, entry in enumerate(_sequence(raw, ("faults",), "faults"))
     )
 
 
-def _read_fault(where: Path, entry: Any, station: Station, scope: Any) -> ScheduledFault:
+def _read_fault(
+    where: Path, entry: Any, station: Station, scope: Any, devices: bool = False
+) -> ScheduledFault:
     """One entry of `faults`: what goes wrong, and when (`at` a time or `when` a condition)."""
     if not isinstance(entry, dict):
         raise _Problem(where, f"a fault is a mapping with keys {', '.join(_FAULT_KEYS)}")
@@ -304,6 +326,12 @@ def _read_fault(where: Path, entry: Any, station: Station, scope: Any) -> Schedu
     kind = entry.get("kind")
     if kind not in FAULTS:
         raise _Problem((*where, "kind"), f"kind must be one of {', '.join(FAULTS)}, not {kind!r}")
+    if FaultKind(kind) in DEVICE_FAULTS and not devices:
+        raise _Problem(
+            (*where, "kind"),
+            f"'{kind}' is a device-level fault: it is played on emulated devices only "
+            "(sp run --devices FILE)",
+        )
     when = _when(entry, where, scope)
     fault = Fault(
         FaultKind(kind),
@@ -312,6 +340,7 @@ def _read_fault(where: Path, entry: Any, station: Station, scope: Any) -> Schedu
         instead=str(entry.get("instead", "")),
         count=int(_number(entry.get("count", 1), (*where, "count"), integer=True)),
         values=dict(_mapping(entry.get("values"), (*where, "values"), "values")),
+        **_device_fields(where, entry, station),
     )
     if fault.resource and fault.resource not in {r.name for r in station.resources}:
         raise _Problem((*where, "resource"), f"unknown resource '{fault.resource}'")
@@ -324,6 +353,46 @@ def _read_fault(where: Path, entry: Any, station: Station, scope: Any) -> Schedu
     text = ", ".join(f"{key}={entry[key]}" for key in _FAULT_KEYS[3:] if key in entry)
     at = _number(entry["at"], (*where, "at")) if "at" in entry else None
     return ScheduledFault(fault, at, when, text, _after(entry, where, when))
+
+
+def _device_fields(where: Path, entry: dict[str, Any], station: Station) -> dict[str, Any]:
+    """`on`, `release`, `offset`, `name`, `value` of a device-level fault, checked."""
+    fields: dict[str, Any] = {}
+    for key in ("on", "release"):
+        if key in entry:
+            if not isinstance(entry[key], bool):
+                raise _Problem((*where, key), f"'{key}' is true or false")
+            fields[key] = entry[key]
+    if "offset" in entry:
+        offset = _sequence(entry["offset"], (*where, "offset"), "offset")
+        if len(offset) != 6:
+            raise _Problem((*where, "offset"), "'offset' is six joint offsets in rad")
+        fields["offset"] = tuple(_number(x, (*where, "offset", k)) for k, x in enumerate(offset))
+    kind = FaultKind(entry["kind"])
+    needs = {
+        FaultKind.PUSH: ("resource", "offset"),
+        FaultKind.STUCK: ("resource", "name"),
+        FaultKind.PROTECTIVE_STOP: ("resource",),
+        FaultKind.POWER: ("resource",),
+        FaultKind.FREEZE: ("resource",),
+        FaultKind.GARBAGE: ("resource",),
+        FaultKind.RESTART: ("resource",),
+    }.get(kind, ())
+    for key in needs:
+        if key not in entry:
+            raise _Problem(where, f"a '{kind}' fault needs '{key}'")
+    if "name" in entry:
+        name = str(entry["name"])
+        if name not in station.model.variable_index:
+            raise _Problem((*where, "name"), f"unknown variable '{name}'")
+        fields["name"] = name
+        if "value" in entry:
+            domain = station.model.variable(name).domain
+            if entry["value"] not in domain:
+                shown = ", ".join(str(v).lower() if isinstance(v, bool) else str(v) for v in domain)
+                raise _Problem((*where, "value"), f"{name} takes one of {shown}")
+            fields["value"] = entry["value"]
+    return fields
 
 
 def _after(entry: dict[str, Any], where: Path, when: Expr | None) -> float:

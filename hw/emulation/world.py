@@ -11,6 +11,9 @@ what would happen to the real device, through the emulators' control channels:
 - `set`: a variable wired to a register is set on its device; a robot's pose means a person
   moved the robot there by hand (`unknown`: pushed aside, which stops it protectively); a
   decision variable no device measures is reported as observed, as the simulated world does;
+- the device-level kinds (DESIGN.md section 8) go to the resource's devices that can play
+  them: `protective_stop` (or its `release`), `power`, `push` and `freeze` to robots,
+  `freeze`, `garbage`, `stuck`, `restart` and `power` to Modbus devices;
 - a maintenance step a person did: the devices it changes are reset and shown the values
   the step leaves (a connector cleared, a robot moved home by hand).
 
@@ -71,6 +74,57 @@ class EmulatedWorld:
                 self.request(device.name, {"op": op, "times": fault.count})
             case FaultKind.SET:
                 self._set(fault.values)
+            case _:
+                self._device_fault(fault)
+
+    def _device_fault(self, fault: Fault) -> None:
+        """A device-level fault on every emulated device of the fault's resource that can
+        play it (a protective stop on a robot, a restart on a Modbus device)."""
+        robots = [d for d in self._of_resource(fault.resource) if d.driver is DriverKind.UR]
+        others = [d for d in self._of_resource(fault.resource) if d.driver is DriverKind.MODBUS]
+        kind = fault.kind
+        requests: list[tuple[DeviceSpec, dict[str, Any]]] = []
+        if kind is FaultKind.PROTECTIVE_STOP:
+            requests = [(d, {"op": "protective_stop", "on": not fault.release}) for d in robots]
+        elif kind is FaultKind.POWER:
+            for d in robots:
+                requests.append((d, {"op": "power", "on": fault.on}))
+                if fault.on:  # a person powers it on and releases the brakes
+                    requests.append((d, {"op": "power", "on": True, "brake_release": True}))
+            for d in others:  # off: the device is gone; on: it boots with its power-on values
+                mode = "up" if fault.on else "refuse"
+                requests += [(d, {"op": "network", "mode": mode})]
+                if fault.on:
+                    requests.append((d, {"op": "restart"}))
+        elif kind is FaultKind.PUSH:
+            requests = [(d, {"op": "push", "offset": list(fault.offset)}) for d in robots]
+        elif kind is FaultKind.FREEZE:
+            requests = [(d, {"op": "freeze", "on": fault.on}) for d in robots]
+            requests += [(d, {"op": "freeze", "frozen": fault.on}) for d in others]
+        elif kind is FaultKind.GARBAGE:
+            requests = [(d, {"op": "garbage", "count": fault.count}) for d in others]
+        elif kind is FaultKind.RESTART:
+            requests = [(d, {"op": "restart"}) for d in others]
+        elif kind is FaultKind.STUCK:
+            requests = self._stuck(fault)
+        if not requests:
+            raise ValueError(f"no emulated device of '{fault.resource}' can play '{kind}'")
+        for device, request in requests:
+            self.request(device.name, request)
+
+    def _stuck(self, fault: Fault) -> list[tuple[DeviceSpec, dict[str, Any]]]:
+        if fault.name not in self.owner:
+            raise ValueError(f"no emulated device measures '{fault.name}'")
+        device, wire = self.owner[fault.name]
+        register = None
+        if wire.register is not None and device.map:
+            register = register_map(device.map).at(wire.register.point)
+        if register is None:
+            raise ValueError(f"'{fault.name}' is not a sensor of a Modbus device")
+        request: dict[str, Any] = {"op": "stuck", "name": register.name}
+        if fault.value is not None:
+            request["value"] = fault.value
+        return [(device, request)]
 
     def maintenance_done(self, transition: str, values: Mapping[str, Value]) -> None:
         """A person did `transition`: what it changed on measured variables, the devices show."""

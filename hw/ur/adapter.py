@@ -23,6 +23,8 @@ class RobotDriver(Driver, Protocol):
 
     def set_tool(self, tcp: tuple[float, ...], payload_kg: float) -> None: ...
 
+    def forget_move(self) -> None: ...
+
 
 class RobotAdapter:
     """A UR robot: joints to named poses (`pose`, `last_pose`), named poses to moveJ
@@ -38,6 +40,11 @@ class RobotAdapter:
         last = str(start.get(self.roles.get(RobotRole.LAST_POSE, ""), pos))
         self.pose = PoseAndLast(pos, last)
         self.target: str | None = None  # the named pose a commanded move is heading for
+        # a move the robot stopped (a protective stop, power): sent again only when the
+        # robot can move, in the first write after the runner saw that (its tick replanned
+        # and still commands it), never while it cannot
+        self.interrupted: str | None = None
+        self.can_move = False
         self.sent: dict[RobotRole, Value] = {}
         self.nonsense = ""
         self.not_before = 0.0  # readings older than this are from before a restart
@@ -47,6 +54,7 @@ class RobotAdapter:
         pos = str(start.get(self.roles.get(RobotRole.POSE, ""), UNKNOWN))
         self.pose = PoseAndLast(pos, str(start.get(self.roles.get(RobotRole.LAST_POSE, ""), pos)))
         self.target, self.sent, self.not_before = None, {}, now
+        self.interrupted = None
 
     def start(self) -> None:
         self.driver.start()
@@ -59,7 +67,8 @@ class RobotAdapter:
         if sample is None or not self.driver.available or sample.received < self.not_before:
             return AdapterReport()
         if self.target is not None and (sample.protective_stop or not sample.running):
-            self.target = None  # the move was aborted: wherever it stopped is where it is
+            # the move was aborted: wherever it stopped is where it is
+            self.interrupted, self.target = self.target, None
         try:
             self.pose = track_move(self.programs.poses, sample.q, self.pose, self.target)
         except Nonsense as problem:
@@ -74,7 +83,9 @@ class RobotAdapter:
         if RobotRole.LAST_POSE in self.roles:
             measured[self.roles[RobotRole.LAST_POSE]] = self.pose.last
         resource = self.spec.resource or self.spec.name
-        return AdapterReport(measured, alive=True, cannot_act=cannot_move(resource, sample))
+        why = cannot_move(resource, sample)
+        self.can_move = not why
+        return AdapterReport(measured, alive=True, cannot_act=why)
 
     def write(self, commands: Mapping[str, Value]) -> None:
         for role in (RobotRole.TOOL, RobotRole.MOVE_TO):
@@ -83,7 +94,9 @@ class RobotAdapter:
                 continue
             value = commands[name]
             first = role not in self.sent
-            if not first and self.sent[role] == value:
+            if role is RobotRole.MOVE_TO and self._resumes(value):
+                self.driver.forget_move()  # the driver sends a move only when it changed
+            elif not first and self.sent[role] == value:
                 continue
             self.sent[role] = value
             if role is RobotRole.TOOL and str(value) in self.programs.tools:
@@ -96,6 +109,15 @@ class RobotAdapter:
                 move = self.programs.goto(str(value))
                 self.target = str(value)
                 self.driver.move_j(move.joints, move.speed, move.acceleration)
+
+    def _resumes(self, value: Value) -> bool:
+        """Whether to send the interrupted move again: the robot can move (the runner's tick
+        saw that before this write) and the runner still commands that pose."""
+        if self.interrupted is None or not self.can_move:
+            return False
+        resume = value == self.interrupted and self.pose.pos != value
+        self.interrupted = None
+        return resume
 
     def status(self) -> LinkStatus:
         status = self.driver.status()

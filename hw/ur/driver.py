@@ -133,6 +133,12 @@ class URDriver:
             self._tool = command
             self._commands.append(command)
 
+    def forget_move(self) -> None:
+        """The next `move_j` is sent even when it is the last one sent (the robot stopped
+        it: a protective stop, a power loss)."""
+        with self._lock:
+            self._last_move = None
+
     def stop_j(self) -> None:
         """Stops the arm (and forgets the last target, so that it can be sent again)."""
         with self._lock:

@@ -68,8 +68,14 @@ def while_blocked(tick: Tick) -> str:
     Names stay model names; pages put them in words (`planner.words.Wording.text`)."""
     state = tick.state
     parts = []
-    if state.unavailable:
-        silent = sorted(state.unavailable)
+    halted = sorted(state.unavailable & state.cannot_act.keys())
+    if halted:  # it answers, and says why it cannot act
+        verb = "does" if len(halted) == 1 else "do"
+        parts.append(
+            f"{_joined(halted)} {verb} not act ({'; '.join(state.cannot_act[r] for r in halted)})"
+        )
+    silent = sorted(state.unavailable - state.cannot_act.keys())
+    if silent:
         verb = "does" if len(silent) == 1 else "do"
         parts.append(f"{_joined(silent)} {verb} not answer")
     disabled = sorted(state.timed_out)
