@@ -193,3 +193,21 @@ def fault_words(fault: Fault, words: Wording | None = None) -> str:
             else:
                 changes = ", ".join(f"{n} := {format_value(v)}" for n, v in fault.values.items())
             return f"someone changes the world by hand: {changes}"
+        case FaultKind.PROTECTIVE_STOP:
+            if fault.release:
+                return f"{resource(fault.resource)}'s protective stop is released"
+            return f"{resource(fault.resource)} stops protectively"
+        case FaultKind.POWER:
+            return f"{resource(fault.resource)} is powered {'on' if fault.on else 'off'}"
+        case FaultKind.PUSH:
+            return f"someone pushes {resource(fault.resource)}'s arm by hand"
+        case FaultKind.FREEZE:
+            frozen = "stand still" if fault.on else "move again"
+            return f"{resource(fault.resource)}'s data {frozen}"
+        case FaultKind.GARBAGE:
+            return f"{resource(fault.resource)} answers garbage{times}"
+        case FaultKind.STUCK:
+            return f"a sensor of {resource(fault.resource)} is stuck: {fault.name}"
+        case FaultKind.RESTART:
+            return f"{resource(fault.resource)} restarts behind an open connection"
+    return str(fault.kind)

@@ -322,6 +322,8 @@ def _read_fault(
     """One entry of `faults`: what goes wrong, and when (`at` a time or `when` a condition)."""
     if not isinstance(entry, dict):
         raise _Problem(where, f"a fault is a mapping with keys {', '.join(_FAULT_KEYS)}")
+    if True in entry:  # YAML 1.1 reads the key `on` as true
+        entry = {("on" if key is True else key): value for key, value in entry.items()}
     _known(where, "fault", entry, _FAULT_KEYS)
     kind = entry.get("kind")
     if kind not in FAULTS:

@@ -205,3 +205,15 @@ def test_run_with_a_bad_scenario_exits_2_naming_file_line_column(tmp_path: Path)
     done = sp("run", str(DEMO), "--scenario", str(bad), "--speed", "0")
     assert done.returncode == 2
     assert f"{bad}:3:10: faults[0].at: 'soon' is not a number" in done.stderr
+
+
+def test_run_refuses_device_faults_without_devices_and_speed_with_them(tmp_path: Path) -> None:
+    stop = tmp_path / "stop.yaml"
+    stop.write_text("faults:\n  - {at: 1, kind: protective_stop, resource: r1}\n")
+    done = sp("run", str(DEMO), "--scenario", str(stop), "--speed", "0")
+    assert done.returncode == 2
+    assert f"{stop}:2:19: faults[0].kind: 'protective_stop' is a device-level fault" in done.stderr
+    devices = DEMO.parent / "demo_station.devices.yaml"
+    done = sp("run", str(DEMO), "--devices", str(devices), "--speed", "0")
+    assert done.returncode == 2
+    assert "--speed: emulated devices run in real time" in done.stderr

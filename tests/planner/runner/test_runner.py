@@ -180,6 +180,38 @@ def test_bad_scenarios_are_reported_with_file_line_column_and_entry(
         load_scenario("faults: [{when: 'r1.poss == home', kind: set}]", "bad.yaml", station)
 
 
+def test_device_level_faults_are_read_on_devices_only_and_checked(
+    demo: tuple[Station, Planners],
+) -> None:
+    """DESIGN.md section 8's device-level kinds: a located error without devices; with, their
+    fields are checked (YAML reads the key `on` as true: it is still `on`)."""
+    station, _ = demo
+    stop = "faults:\n  - {at: 1, kind: protective_stop, resource: r1}\n"
+    with pytest.raises(ScenarioError) as caught:
+        load_scenario(stop, "stop.yaml", station)
+    assert str(caught.value).startswith("stop.yaml:2:19: faults[0].kind: 'protective_stop' is")
+    assert "sp run --devices" in str(caught.value)
+    [fault] = load_scenario(stop, "stop.yaml", station, devices=True).faults
+    assert fault.fault.kind is FaultKind.PROTECTIVE_STOP and not fault.fault.release
+    text = "faults: [{at: 1, kind: power, resource: r2, on: false}]"
+    [fault] = load_scenario(text, "power.yaml", station, devices=True).faults
+    assert (fault.fault.kind, fault.fault.on) == (FaultKind.POWER, False)
+    cases = {
+        "faults: [{at: 1, kind: push, resource: r1, offset: [1, 2]}]": "six joint offsets",
+        "faults: [{at: 1, kind: push, resource: r1}]": "a 'push' fault needs 'offset'",
+        "faults: [{at: 1, kind: restart}]": "a 'restart' fault needs 'resource'",
+        "faults: [{at: 1, kind: stuck, resource: r2_tc, name: r2_tc.nope}]": "unknown variable",
+        "faults: [{at: 1, kind: stuck, resource: r2_tc, name: r2_tc.connected, value: 3}]": (
+            "r2_tc.connected takes one of false, true"
+        ),
+        "faults: [{at: 1, kind: freeze, resource: r1, on: maybe}]": "'on' is true or false",
+    }
+    for text, message in cases.items():
+        with pytest.raises(ScenarioError) as caught:
+            load_scenario(text, "bad.yaml", station, devices=True)
+        assert message in str(caught.value), str(caught.value)
+
+
 def test_the_scenario_keys_of_parallel_operations_are_read(
     demo: tuple[Station, Planners],
 ) -> None:

@@ -1,0 +1,102 @@
+"""Device-level faults played on emulated devices (issue 28): `sp run --devices` plays each
+scenario of models/scenarios/devices/ in real time through ur_rtde and pymodbus, three at a
+time, each on its own block of loopback addresses.
+
+Each must end as its `expect` says: done, or stopped with `waiting_for` naming the device, the
+cause and the person to act.  Whatever the fault, a forbidden state comes only from the
+world (within a second of a fault), never later from what the station did, and a stop never
+waits on an effect that timed out."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+
+from hw.ur.emulator.launch import free_block, on_block
+from tests.support.paths import REPOSITORY
+
+ROOT = REPOSITORY
+MODEL = ROOT / "models" / "demo_station.yaml"
+DEVICES = ROOT / "models" / "demo_station.devices.yaml"
+SCENARIOS = sorted((ROOT / "models" / "scenarios" / "devices").glob("*.yaml"))
+PARALLEL = 3
+TIME_LIMIT = 300.0
+
+
+def play(path: Path, block: int, directory: Path) -> tuple[list[dict[str, Any]], str]:
+    devices = directory / f"{path.stem}.devices.yaml"
+    devices.write_text(on_block(DEVICES.read_text(), block))
+    command = [sys.executable, "-m", "app.cli.main", "run", str(MODEL), "--json"]
+    command += ["--scenario", str(path), "--devices", str(devices)]
+    done = subprocess.run(
+        command, capture_output=True, text=True, timeout=TIME_LIMIT, cwd=ROOT, check=False
+    )
+    return [json.loads(line) for line in done.stdout.splitlines() if line], done.stderr
+
+
+@pytest.fixture(scope="module")
+def played(
+    tmp_path_factory: pytest.TempPathFactory,
+) -> dict[str, tuple[list[dict[str, Any]], str]]:
+    directory = tmp_path_factory.mktemp("device-faults")
+    taken: set[int] = set()
+    # blocks 200-239: the experiments take 40-89, serve-devices 90-119, station devices 120-199
+    blocks = {p.stem: free_block(range(200, 240), taken) for p in SCENARIOS}
+    with ThreadPoolExecutor(PARALLEL) as pool:
+        runs = {p.stem: pool.submit(play, p, blocks[p.stem], directory) for p in SCENARIOS}
+        return {name: run.result() for name, run in runs.items()}
+
+
+def test_there_is_a_play_for_each_kind_the_issue_names() -> None:
+    kinds = {
+        fault["kind"]
+        for path in SCENARIOS
+        for fault in yaml.safe_load(path.read_text()).get("faults", [])
+    }
+    assert {"protective_stop", "power", "restart", "garbage"} <= kinds, kinds
+
+
+@pytest.mark.parametrize("path", SCENARIOS, ids=lambda p: p.stem)
+def test_a_device_fault_ends_as_a_good_station_would(
+    played: dict[str, tuple[list[dict[str, Any]], str]], path: Path
+) -> None:
+    events, errors = played[path.stem]
+    assert events, errors[-2000:]
+    expect = yaml.safe_load(path.read_text())["expect"]
+    last = events[-1]
+    assert last["kind"] == expect["ends"], (last, errors[-2000:])
+    if last["kind"] == "stopped":
+        waiting = last["waiting_for"]
+        wanted = expect["waiting_for"]
+        assert [(w["who"], w["subject"]) for w in waiting] == [
+            (w["who"], w["subject"]) for w in wanted
+        ], waiting
+        for item, want in zip(waiting, wanted, strict=True):
+            assert want["says"] in item["what"], item["what"]
+        late = {w["subject"] for w in waiting if "did not happen in time" in w["what"]}
+        assert not [w for w in waiting if w["who"] != "engineer" and w["subject"] in late]
+    faults = [e["time"] for e in events if e["kind"] == "fault"]
+    for forbidden in (e for e in events if e["kind"] == "forbidden"):
+        assert any(0 <= forbidden["time"] - t <= 1.0 for t in faults), forbidden
+
+
+def test_a_robot_that_cannot_move_is_named_at_once_with_what_a_person_does(
+    played: dict[str, tuple[list[dict[str, Any]], str]],
+) -> None:
+    for name, says in (
+        ("r1_protective_stop_on_the_way", "r1 is in a protective stop: release it"),
+        ("r1_power_lost_on_the_way", "r1 has no power: power it on"),
+    ):
+        events, _ = played[name]
+        [fault] = [e for e in events if e["kind"] == "fault"][:1]
+        [said] = [e for e in events if e["kind"] == "unavailable" and says in e.get("why", "")]
+        # the next round or two, not after a heartbeat time-out (the robot answers)
+        assert said["subject"] == "r1" and said["time"] - fault["time"] < 1.0, said
+        assert [e for e in events if e["kind"] == "available" and e["subject"] == "r1"]
