@@ -132,7 +132,7 @@ def _server(
         ApiTokens(secret),
         cache,
         throttle=SignInThrottle(),
-        experiments=experiments(model.station) if live.simulated else {},
+        experiments=experiments(model.station, live.emulated) if live.simulated else {},
         secure_cookies=secure_cookies,
         trusted_proxies=parse_networks(trusted_proxies),
         api_docs=api_docs,

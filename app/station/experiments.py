@@ -38,17 +38,28 @@ TITLES = {
 }
 
 
-def experiments(station: Station) -> dict[str, tuple[str, Scenario]]:
-    """The E1-E9 scenarios, for the simulation panel (those that fit the active model)."""
+def experiments(station: Station, emulated: bool = False) -> dict[str, tuple[str, Scenario]]:
+    """The E1-E9 scenarios, for the simulation panel (those that fit the active model); on
+    emulated devices also the device-level plays of models/scenarios/devices/ (a protective
+    stop, a power cycle, ...), which only devices can play."""
     found: dict[str, tuple[str, Scenario]] = {}
-    for path in sorted(SCENARIOS.glob("e*.yaml")):
+    paths = sorted(SCENARIOS.glob("e*.yaml"))
+    if emulated:
+        paths += sorted((SCENARIOS / "devices").glob("*.yaml"))
+    for path in paths:
         try:
-            scenario = load_scenario(path.read_text(encoding="utf-8"), str(path), station)
+            text = path.read_text(encoding="utf-8")
+            scenario = load_scenario(text, str(path), station, devices=emulated)
         except ScenarioError as exc:
             log.warning("experiment %s does not fit the model: %s", path.name, exc)
             continue
-        found[path.stem] = (TITLES.get(path.stem, path.stem), scenario)
+        found[path.stem] = (TITLES.get(path.stem, _title(path.stem)), scenario)
     return found
+
+
+def _title(stem: str) -> str:
+    """A device play's title from its file name: "devices: r1 protective stop on the way"."""
+    return "devices: " + stem.replace("_", " ")
 
 
 def play(running: Running, round_: Round, scenario: Scenario, title: str, user: str) -> None:

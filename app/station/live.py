@@ -97,6 +97,7 @@ class LiveStation:
         )
         # the simulation panel acts on all but real devices (tests may switch it off)
         self.simulated = self.running.devices.kind.can_fail_on_demand
+        self.emulated = self.running.devices.kind is DeviceKind.EMULATED
         self.commit = Commit(store, name)
         self.show = Show(self.running, lambda: self.simulated, self.now())
         self.after_tick = after_tick(self.commit, self.show)

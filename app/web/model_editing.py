@@ -174,4 +174,4 @@ async def _activate(srv: Server, number: int, user: str) -> None:
         gc.collect()  # one long collection, while the station is idle or in restart mode
         gc.freeze()
     if srv.live.simulated:  # those that fit the new model (none may, and all may again)
-        srv.experiments = experiments(model.station)
+        srv.experiments = experiments(model.station, srv.live.emulated)

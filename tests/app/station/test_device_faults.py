@@ -100,3 +100,18 @@ def test_a_robot_that_cannot_move_is_named_at_once_with_what_a_person_does(
         # the next round or two, not after a heartbeat time-out (the robot answers)
         assert said["subject"] == "r1" and said["time"] - fault["time"] < 1.0, said
         assert [e for e in events if e["kind"] == "available" and e["subject"] == "r1"]
+
+
+def test_the_simulation_panel_offers_the_device_plays_on_emulated_devices_only() -> None:
+    from app.station.experiments import experiments
+    from tests.support import plays as shared
+
+    station, _ = shared.demo()
+    simulated = experiments(station)
+    emulated = experiments(station, emulated=True)
+    device_plays = {p.stem for p in SCENARIOS}
+    assert len(simulated) == 9 and not device_plays & simulated.keys()
+    assert device_plays <= emulated.keys() and simulated.keys() <= emulated.keys()
+    title, scenario = emulated["r1_protective_stop_on_the_way"]
+    assert title == "devices: r1 protective stop on the way"
+    assert [f.fault.kind.value for f in scenario.faults] == ["protective_stop"] * 2
