@@ -192,7 +192,7 @@ def _instructions(view: StationView) -> list[TaskCard]:
                     CardKind.INSTRUCTION,
                     f"maintenance-{name}",
                     sentence(describe(view, name)),
-                    failed,
+                    _joined(failed, _safe(view, name)),
                     detail=f"step {number} of {len(people)}" if number else "",
                     transition=name,
                     step=number,
@@ -210,8 +210,11 @@ def _instructions(view: StationView) -> list[TaskCard]:
                         CardKind.INSTRUCTION,
                         f"recovery-{name}",
                         sentence(describe(view, name)),
-                        f"Not allowed now: {violated}. Your step puts it right; if you cannot "
-                        "do it, say so and the station looks for another way.",
+                        _joined(
+                            f"Not allowed now: {violated}. Your step puts it right; if you "
+                            "cannot do it, say so and the station looks for another way.",
+                            _safe(view, name),
+                        ),
                         transition=name,
                         step=k,
                         rejectable=True,
@@ -250,6 +253,22 @@ def _violated(view: StationView) -> str:
     words = view.model.words
     names = sorted(view.state.relaxed)
     return words.sentence(" and ".join(words.specification(n) for n in names) or "the rules")
+
+
+def _safe(view: StationView, name: str) -> str:
+    """What the model made safe before a person's step (its specifications with `before`,
+    which the plan already met): "Made safe first: ..."."""
+    words = view.model.words
+    said = [
+        r.display or words.text(r.description) or r.name
+        for r in view.model.station.step_requirements
+        if name in r.steps
+    ]
+    return f"Made safe first: {'; '.join(said)}." if said else ""
+
+
+def _joined(*parts: str) -> str:
+    return " ".join(p for p in parts if p)
 
 
 def describe(view: StationView, name: str) -> str:

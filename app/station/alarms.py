@@ -115,17 +115,13 @@ def _not_answering(runner: Runner, state: RunnerState, words: Wording) -> list[C
     resources = {r.name: r for r in runner.station.resources}
     found = []
     for name in sorted(state.unavailable):
-        if name in state.cannot_act:  # it answers, and says why it cannot act
-            why = words.text(state.cannot_act[name])
-            message = f"{why}; {words.resource(name)}'s steps are disabled until it can act"
-            found.append(Condition(f"resource:{name}", Priority.HIGH, message, name))
-            continue
+        who = words.resource(name)
         about = words.text(resources[name].description) if name in resources else ""
-        message = (
-            f"{words.resource(name)} is not answering (no heartbeat)"
-            + (f": {about}" if about else "")
-            + "; its steps are disabled until it answers"
-        )
+        about = f": {about}" if about else ""
+        message = f"{who} is not answering (no heartbeat){about}; its steps are disabled until"
+        message += " it answers"
+        if name in state.cannot_act:  # it answers, and says why it cannot act
+            message = f"{words.text(state.cannot_act[name])}; {who}'s steps wait until it can act"
         found.append(Condition(f"resource:{name}", Priority.HIGH, message, name))
     return found
 

@@ -15,9 +15,18 @@ from typing import Any
 import yaml
 
 from app.station.cycle import ScheduledAction, ScheduledFault
-from hw.faults import DEVICE_FAULTS, FAULTS, Fault, FaultKind
-from planner.model.expression_text import parse_expr
-from planner.model.expressions import Expr, Value
+from app.station.scenario_faults import read_faults
+from app.station.scenario_fields import (
+    Path,
+    Problem,
+    after_of,
+    known,
+    mapping,
+    number,
+    sequence,
+    when_of,
+)
+from planner.model.expressions import Value
 from planner.model.station import Station
 from planner.reading.yaml_reader import scope_for
 from planner.runner import (
@@ -57,22 +66,6 @@ _CONFIG_KEYS = (
     "recheck_period",
     "max_steps",
     "sequential",
-)
-_FAULT_KEYS = (
-    "at",
-    "when",
-    "after",
-    "kind",
-    "resource",
-    "effect",
-    "instead",
-    "count",
-    "values",
-    "on",
-    "release",
-    "offset",
-    "name",
-    "value",
 )
 # what people do at given times: (action, the keys it takes besides at/when/do/user)
 _ACTIONS: dict[str, tuple[type[Action], tuple[str, ...]]] = {
@@ -123,18 +116,6 @@ class Scenario:
         return tuple(dict.fromkeys([*(self.intentions or ()), *by_people]))
 
 
-Path = tuple[str | int, ...]
-
-
-class _Problem(Exception):
-    """A problem at a place in the scenario (a path of keys and indexes)."""
-
-    def __init__(self, path: Path, text: str) -> None:
-        super().__init__(text)
-        self.path = path
-        self.text = text
-
-
 def load_scenario(text: str, file: str, station: Station, *, devices: bool = False) -> Scenario:
     """Read a scenario; a problem is reported as `file:line:column: entry: what is wrong`.
 
@@ -150,7 +131,7 @@ def load_scenario(text: str, file: str, station: Station, *, devices: bool = Fal
         raise ScenarioError(f"{where}: not valid YAML: {problem}") from None
     try:
         return _read(data, file, station, devices)
-    except _Problem as problem:
+    except Problem as problem:
         line, column = _locate(root, problem.path)
         entry = "".join(
             f"[{p}]" if isinstance(p, int) or "." in p else f".{p}" for p in problem.path
@@ -179,50 +160,24 @@ def _locate(node: yaml.Node | None, path: Path) -> tuple[int, int]:
     return node.start_mark.line + 1, node.start_mark.column + 1
 
 
-def _number(value: Any, path: Path, *, integer: bool = False) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise _Problem(path, f"{value!r} is not a number")
-    if integer and not isinstance(value, int):
-        raise _Problem(path, f"{value!r} is not a whole number")
-    if value < 0:
-        raise _Problem(path, f"{value!r} is negative")
-    return value
-
-
-def _mapping(value: Any, path: Path, what: str) -> dict[str, Any]:
-    if value is None:
-        return {}
-    if not isinstance(value, dict):
-        raise _Problem(path, f"{what} must be a mapping")
-    return value
-
-
-def _sequence(value: Any, path: Path, what: str) -> list[Any]:
-    if value is None:
-        return []
-    if not isinstance(value, list):
-        raise _Problem(path, f"{what} must be a list")
-    return value
-
-
 def _read(data: Any, file: str, station: Station, devices: bool = False) -> Scenario:
     if not isinstance(data, dict):
-        raise _Problem((), f"a scenario is a mapping with keys {', '.join(_KEYS)}")
-    _known((), "scenario", data, _KEYS)
+        raise Problem((), f"a scenario is a mapping with keys {', '.join(_KEYS)}")
+    known((), "scenario", data, _KEYS)
     start = _read_start(data.get("start"), station)
     intentions = _read_intentions(data.get("intentions"), station)
     config = _read_config(data.get("config"), station, intentions)
     delays, default_delay = _read_delays(data.get("delays"), station)
     scope = scope_for(station.model.domains, station.predicates)
-    faults = _read_faults(data.get("faults"), station, scope, devices)
+    faults = read_faults(data.get("faults"), station, scope, devices)
     actions = tuple(
         _read_action(("actions", k), entry, scope)
-        for k, entry in enumerate(_sequence(data.get("actions"), ("actions",), "actions"))
+        for k, entry in enumerate(sequence(data.get("actions"), ("actions",), "actions"))
     )
-    planning = _mapping(data.get("planning"), ("planning",), "planning")
-    _known(("planning",), "planning", planning, ("delay", "budget"))
-    operator = _mapping(data.get("operator"), ("operator",), "operator")
-    _known(("operator",), "operator", operator, ("delay", "approve", "maintenance", "reject"))
+    planning = mapping(data.get("planning"), ("planning",), "planning")
+    known(("planning",), "planning", planning, ("delay", "budget"))
+    operator = mapping(data.get("operator"), ("operator",), "operator")
+    known(("operator",), "operator", operator, ("delay", "approve", "maintenance", "reject"))
     return Scenario(
         file=file,
         description=str(data.get("description", "")),
@@ -233,14 +188,14 @@ def _read(data: Any, file: str, station: Station, devices: bool = False) -> Scen
         default_delay=default_delay,
         faults=faults,
         actions=actions,
-        operator_delay=_number(operator.get("delay", 2.0), ("operator", "delay")),
+        operator_delay=number(operator.get("delay", 2.0), ("operator", "delay")),
         approve=bool(operator.get("approve", True)),
         maintenance=bool(operator.get("maintenance", True)),
-        rejects=int(_number(operator.get("reject", 0), ("operator", "reject"), integer=True)),
-        until=_number(data.get("until", 900.0), ("until",)),
-        expect=_mapping(data.get("expect"), ("expect",), "expect"),
-        planning_delay=_number(planning.get("delay", 0.0), ("planning", "delay")),
-        planning_budget=_number(planning.get("budget", 10.0), ("planning", "budget")),
+        rejects=int(number(operator.get("reject", 0), ("operator", "reject"), integer=True)),
+        until=number(data.get("until", 900.0), ("until",)),
+        expect=mapping(data.get("expect"), ("expect",), "expect"),
+        planning_delay=number(planning.get("delay", 0.0), ("planning", "delay")),
+        planning_budget=number(planning.get("budget", 10.0), ("planning", "budget")),
     )
 
 
@@ -248,12 +203,12 @@ def _read_start(raw: Any, station: Station) -> dict[str, Value]:
     """`start`: values that replace the model's initial ones."""
     model = station.model
     start: dict[str, Value] = {}
-    for name, value in _mapping(raw, ("start",), "start").items():
+    for name, value in mapping(raw, ("start",), "start").items():
         if name not in model.variable_index:
-            raise _Problem(("start", name), f"unknown variable '{name}'")
+            raise Problem(("start", name), f"unknown variable '{name}'")
         domain = model.variable(name)
         if value not in domain.domain:
-            raise _Problem(("start", name), f"{value!r} is not in {domain.describe_domain()}")
+            raise Problem(("start", name), f"{value!r} is not in {domain.describe_domain()}")
         start[name] = value
     return start
 
@@ -263,29 +218,29 @@ def _read_intentions(raw: Any, station: Station) -> tuple[str, ...] | None:
     if raw is None:
         return None
     known = {i.name for i in station.intentions}
-    for k, name in enumerate(_sequence(raw, ("intentions",), "intentions")):
+    for k, name in enumerate(sequence(raw, ("intentions",), "intentions")):
         if name not in known:
-            raise _Problem(("intentions", k), f"unknown intention '{name}'")
+            raise Problem(("intentions", k), f"unknown intention '{name}'")
     return tuple(raw)
 
 
 def _read_config(raw: Any, station: Station, intentions: tuple[str, ...] | None) -> RunnerConfig:
     """`config`: the runner's settings, the effects' own time-outs among them."""
-    config = _mapping(raw, ("config",), "config")
-    _known(("config",), "config", config, _CONFIG_KEYS)
+    config = mapping(raw, ("config",), "config")
+    known(("config",), "config", config, _CONFIG_KEYS)
     transitions = station.model.transition_index
-    timeouts = _mapping(config.get("effect_timeouts"), ("config", "effect_timeouts"), "it")
+    timeouts = mapping(config.get("effect_timeouts"), ("config", "effect_timeouts"), "it")
     for effect, seconds in timeouts.items():
         if effect not in transitions:
-            raise _Problem(("config", "effect_timeouts", effect), f"unknown transition '{effect}'")
+            raise Problem(("config", "effect_timeouts", effect), f"unknown transition '{effect}'")
         if seconds is not None:
-            _number(seconds, ("config", "effect_timeouts", effect))
+            number(seconds, ("config", "effect_timeouts", effect))
     numbers = ("effect_timeout", "heartbeat_timeout", "reminder", "recheck_period")
     for key in (*numbers, "retries", "max_steps"):
         if key in config:
-            _number(config[key], ("config", key), integer=key in ("retries", "max_steps"))
+            number(config[key], ("config", key), integer=key in ("retries", "max_steps"))
     if "sequential" in config and not isinstance(config["sequential"], bool):
-        raise _Problem(("config", "sequential"), f"{config['sequential']!r} is not true or false")
+        raise Problem(("config", "sequential"), f"{config['sequential']!r} is not true or false")
     return RunnerConfig(
         auto_intentions=frozenset(intentions) if intentions is not None else None,
         **{k: v for k, v in config.items()},
@@ -294,154 +249,36 @@ def _read_config(raw: Any, station: Station, intentions: tuple[str, ...] | None)
 
 def _read_delays(raw: Any, station: Station) -> tuple[dict[str, float], float]:
     """`delays`: seconds per resource or effect, and the `default` for the others."""
-    delays = dict(_mapping(raw, ("delays",), "delays"))
+    delays = dict(mapping(raw, ("delays",), "delays"))
     resources = {r.name for r in station.resources}
     for name, seconds in delays.items():
-        _number(seconds, ("delays", name))
+        number(seconds, ("delays", name))
         if (
             name != "default"
             and name not in station.model.transition_index
             and name not in resources
         ):
-            raise _Problem(("delays", name), f"'{name}' is neither a resource nor an effect")
+            raise Problem(("delays", name), f"'{name}' is neither a resource nor an effect")
     return delays, float(delays.pop("default", 1.0))
-
-
-def _read_faults(
-    raw: Any, station: Station, scope: Any, devices: bool
-) -> tuple[ScheduledFault, ...]:
-    return tuple(
-        _read_fault(("faults", k), entry, station, scope, devices)
-        for k, entry in enumerate(_sequence(raw, ("faults",), "faults"))
-    )
-
-
-def _read_fault(
-    where: Path, entry: Any, station: Station, scope: Any, devices: bool = False
-) -> ScheduledFault:
-    """One entry of `faults`: what goes wrong, and when (`at` a time or `when` a condition)."""
-    if not isinstance(entry, dict):
-        raise _Problem(where, f"a fault is a mapping with keys {', '.join(_FAULT_KEYS)}")
-    if True in entry:  # YAML 1.1 reads the key `on` as true
-        entry = {("on" if key is True else key): value for key, value in entry.items()}
-    _known(where, "fault", entry, _FAULT_KEYS)
-    kind = entry.get("kind")
-    if kind not in FAULTS:
-        raise _Problem((*where, "kind"), f"kind must be one of {', '.join(FAULTS)}, not {kind!r}")
-    if FaultKind(kind) in DEVICE_FAULTS and not devices:
-        raise _Problem(
-            (*where, "kind"),
-            f"'{kind}' is a device-level fault: it is played on emulated devices only "
-            "(sp run --devices FILE)",
-        )
-    when = _when(entry, where, scope)
-    fault = Fault(
-        FaultKind(kind),
-        resource=str(entry.get("resource", "")),
-        effect=str(entry.get("effect", "")),
-        instead=str(entry.get("instead", "")),
-        count=int(_number(entry.get("count", 1), (*where, "count"), integer=True)),
-        values=dict(_mapping(entry.get("values"), (*where, "values"), "values")),
-        **_device_fields(where, entry, station),
-    )
-    if fault.resource and fault.resource not in {r.name for r in station.resources}:
-        raise _Problem((*where, "resource"), f"unknown resource '{fault.resource}'")
-    for key, name in (("effect", fault.effect), ("instead", fault.instead)):
-        if name and name not in station.model.transition_index:
-            raise _Problem((*where, key), f"unknown transition '{name}'")
-    for name in fault.values:
-        if name not in station.model.variable_index:
-            raise _Problem((*where, "values", name), f"unknown variable '{name}'")
-    text = ", ".join(f"{key}={entry[key]}" for key in _FAULT_KEYS[3:] if key in entry)
-    at = _number(entry["at"], (*where, "at")) if "at" in entry else None
-    return ScheduledFault(fault, at, when, text, _after(entry, where, when))
-
-
-def _device_fields(where: Path, entry: dict[str, Any], station: Station) -> dict[str, Any]:
-    """`on`, `release`, `offset`, `name`, `value` of a device-level fault, checked."""
-    fields: dict[str, Any] = {}
-    for key in ("on", "release"):
-        if key in entry:
-            if not isinstance(entry[key], bool):
-                raise _Problem((*where, key), f"'{key}' is true or false")
-            fields[key] = entry[key]
-    if "offset" in entry:
-        offset = _sequence(entry["offset"], (*where, "offset"), "offset")
-        if len(offset) != 6:
-            raise _Problem((*where, "offset"), "'offset' is six joint offsets in rad")
-        fields["offset"] = tuple(_number(x, (*where, "offset", k)) for k, x in enumerate(offset))
-    kind = FaultKind(entry["kind"])
-    needs = {
-        FaultKind.PUSH: ("resource", "offset"),
-        FaultKind.STUCK: ("resource", "name"),
-        FaultKind.PROTECTIVE_STOP: ("resource",),
-        FaultKind.POWER: ("resource",),
-        FaultKind.FREEZE: ("resource",),
-        FaultKind.GARBAGE: ("resource",),
-        FaultKind.RESTART: ("resource",),
-    }.get(kind, ())
-    for key in needs:
-        if key not in entry:
-            raise _Problem(where, f"a '{kind}' fault needs '{key}'")
-    if "name" in entry:
-        name = str(entry["name"])
-        if name not in station.model.variable_index:
-            raise _Problem((*where, "name"), f"unknown variable '{name}'")
-        fields["name"] = name
-        if "value" in entry:
-            domain = station.model.variable(name).domain
-            if entry["value"] not in domain:
-                shown = ", ".join(str(v).lower() if isinstance(v, bool) else str(v) for v in domain)
-                raise _Problem((*where, "value"), f"{name} takes one of {shown}")
-            fields["value"] = entry["value"]
-    return fields
-
-
-def _after(entry: dict[str, Any], where: Path, when: Expr | None) -> float:
-    """`after`: seconds from the moment a `when` condition first holds."""
-    after = _number(entry.get("after", 0.0), (*where, "after"))
-    if after and when is None:
-        raise _Problem((*where, "after"), "'after' counts from a 'when' condition: give one")
-    return after
-
-
-def _when(entry: dict[str, Any], where: Path, scope: Any) -> Expr | None:
-    when = None
-    if "when" in entry:
-        try:
-            when = parse_expr(str(entry["when"]), scope)
-        except Exception as exc:  # the expression parser's own located message
-            raise _Problem((*where, "when"), str(exc)) from None
-    if "at" not in entry and when is None:
-        raise _Problem(where, "give 'at' (seconds) or 'when' (a condition)")
-    return when
 
 
 def _read_action(where: Path, entry: Any, scope: Any) -> ScheduledAction:
     if not isinstance(entry, dict):
-        raise _Problem(where, "an action is a mapping with keys at/when, do, ...")
+        raise Problem(where, "an action is a mapping with keys at/when, do, ...")
     do = entry.get("do")
     if do not in _ACTIONS:
-        raise _Problem((*where, "do"), f"do must be one of {', '.join(_ACTIONS)}, not {do!r}")
+        raise Problem((*where, "do"), f"do must be one of {', '.join(_ACTIONS)}, not {do!r}")
     kind, keys = _ACTIONS[do]
-    _known(where, "action", entry, ("at", "when", "after", "do", "user", *keys))
-    when = _when(entry, where, scope)
-    after = _after(entry, where, when)
+    known(where, "action", entry, ("at", "when", "after", "do", "user", *keys))
+    when = when_of(entry, where, scope)
+    after = after_of(entry, where, when)
     missing = [key for key in keys if key not in entry and key != "reason"]
     if missing:
-        raise _Problem(where, f"{do} needs {', '.join(missing)}")
+        raise Problem(where, f"{do} needs {', '.join(missing)}")
     arguments = {key: entry[key] for key in keys if key in entry}
     action = kind(user=str(entry.get("user", "engineer")), **arguments)
-    at = _number(entry["at"], (*where, "at")) if "at" in entry else None
+    at = number(entry["at"], (*where, "at")) if "at" in entry else None
     return ScheduledAction(action, at, when, after)
-
-
-def _known(where: Path, what: str, data: Mapping[str, Any], keys: tuple[str, ...]) -> None:
-    if not isinstance(data, dict):
-        raise _Problem(where, f"{what} must be a mapping")
-    for key in data:
-        if key not in keys:
-            raise _Problem((*where, key), f"unknown {what} key '{key}'; use {', '.join(keys)}")
 
 
 def person_delay_of(scenario: Scenario, station: Station) -> float:

@@ -22,7 +22,7 @@ from planner.model.expressions import (
     Value,
     conjunction,
 )
-from planner.model.flat import Model
+from planner.model.flat import Model, SourceLocation
 from planner.model.watch import Watch
 
 
@@ -117,6 +117,20 @@ def value_is(name: str, value: Value) -> Expr:
 
 
 @dataclass(frozen=True)
+class StepRequirement:
+    """A state some steps need before they are taken (a specification with `before`): a
+    person's step on a robot needs its tools idle.  Compiled into those steps' guards (so
+    plans and the supervisor follow it); kept to say why on the cards."""
+
+    name: str
+    requires: Expr
+    steps: tuple[str, ...]
+    source: SourceLocation | None = field(default=None, compare=False)
+    description: str = field(default="", compare=False)
+    display: str = field(default="", compare=False)
+
+
+@dataclass(frozen=True)
 class Station:
     model: Model
     name: str = ""
@@ -128,6 +142,7 @@ class Station:
     restart_transitions: frozenset[str] = frozenset()
     description: str = ""
     display: str = ""  # the station's name for people (planner.words)
+    step_requirements: tuple[StepRequirement, ...] = ()
 
     def operation(self, name: str) -> Operation:
         return next(o for o in self.operations if o.name == name)

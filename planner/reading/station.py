@@ -18,7 +18,7 @@ import yaml
 from planner.model.expression_text import Scope
 from planner.model.expressions import Expr, Value
 from planner.model.flat import Model, Specification, Transition, Variable
-from planner.model.station import Ability, Resource, ResourceKind, Station
+from planner.model.station import Ability, Resource, ResourceKind, Station, StepRequirement
 from planner.reading.abilities import Located, read_ability
 from planner.reading.flat import (
     name_nodes,
@@ -29,8 +29,9 @@ from planner.reading.flat import (
     read_variable,
 )
 from planner.reading.operations import read_intentions, read_operations
+from planner.reading.step_requirements import guarded, read_step_requirement
 from planner.reading.watch import read_watch
-from planner.reading.yaml_reader import Fields, Reader, each, name_node, scope_for
+from planner.reading.yaml_reader import Fields, Reader, each, key_node, name_node, scope_for
 
 STATION_KEYS = ("station", "description", "display", "resources", "operations", "intentions")
 _RESOURCE_KEYS = (
@@ -77,7 +78,7 @@ class _StationReader:
         resources = [self.read_resource(r, f, prefixed) for r, f in self.resource_fields]
         scope = scope_for(self.domains, self.predicates, sizes=reader.sizes)
         self.read_station_transitions(scope)
-        specifications = self.read_specifications(scope)
+        specifications, requirements = self.read_specifications(scope)
         operations = read_operations(
             reader, self.sequence(top, "operations"), scope, self.by_name, self.predicates
         )
@@ -89,7 +90,9 @@ class _StationReader:
             reader, resources, self.resource_fields, self.by_name, self.transitions
         )
         reader.raise_if_errors()
-        transitions = tuple(t for t, _ in self.transitions)
+        located = guarded(reader, self.transitions, requirements)
+        reader.raise_if_errors()
+        transitions = tuple(t for t, _ in located)
         model = Model(tuple(self.variables), transitions, tuple(specifications), reader.file)
         return Station(
             model,
@@ -102,6 +105,7 @@ class _StationReader:
             frozenset(self.restart),
             read_description(reader, top),
             display,
+            tuple(r for r, _ in requirements),
         )
 
     def sequence(self, fields: Fields, key: str) -> list[yaml.Node]:
@@ -189,13 +193,21 @@ class _StationReader:
                 self.transitions.append((station_wide, node))
         self.reader.unique([(t.name, name_node(n)) for t, n in self.transitions], "transition")
 
-    def read_specifications(self, scope: Scope) -> list[Specification]:
+    def read_specifications(
+        self, scope: Scope
+    ) -> tuple[list[Specification], list[tuple[StepRequirement, list[yaml.Node]]]]:
+        """The invariants, and the specifications with `before` (`step_requirements`)."""
         reader = self.reader
         nodes = self.sequence(self.top, "specifications")
-        specifications = list(each(reader, nodes, lambda n: read_specification(reader, n, scope)))
+        steps = [n for n in nodes if key_node(n, "before") is not None]
+        states = [n for n in nodes if key_node(n, "before") is None]
+        specifications = list(each(reader, states, lambda n: read_specification(reader, n, scope)))
+        requirements = list(each(reader, steps, lambda n: read_step_requirement(reader, n, scope)))
         at = name_nodes(nodes)
-        reader.unique([(s.name, at(s.source)) for s in specifications], "specification")
-        return specifications
+        named = [(s.name, s.source) for s in specifications]
+        named += [(r.name, r.source) for r, _ in requirements]
+        reader.unique([(name, at(source)) for name, source in named], "specification")
+        return specifications, requirements
 
 
 def _by_prefix(variables: list[Variable]) -> dict[str, list[str]]:
