@@ -23,8 +23,11 @@ from app.station.recovery_types import as_the_paper, label, operator_work, recov
 from app.station.scenario import load_scenario
 from hw.ur.emulator.launch import free_block, on_block
 from planner.reading import load_station
+from tests.support.one_at_a_time import one_at_a_time
 from tests.support.paths import REPOSITORY
 
+# the module's plays may wait for the other group of device plays (one_at_a_time)
+pytestmark = pytest.mark.timeout(900)
 ROOT = REPOSITORY
 MODEL = ROOT / "models" / "demo_station.yaml"
 DEVICES = ROOT / "models" / "demo_station.devices.yaml"
@@ -75,7 +78,7 @@ def played(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[list[Eve
     taken: set[int] = set()
     # blocks 40-89: tests/app/cli/test_serve_devices.py takes 90-119, test_station_devices 120-199
     blocks = {name: free_block(range(40, 90), taken) for name in EXPERIMENTS}
-    with ThreadPoolExecutor(PARALLEL) as pool:
+    with one_at_a_time("device-plays"), ThreadPoolExecutor(PARALLEL) as pool:
         runs = {name: pool.submit(play, name, blocks[name], directory) for name in EXPERIMENTS}
         return {name: run.result() for name, run in runs.items()}
 
