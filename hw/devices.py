@@ -51,13 +51,17 @@ class DeviceReport:
     `measured`: measured variables as the devices report them; `observed`: decision or
     estimated variables a pipeline measures directly (a product tracker); `heartbeats`: the
     resources that answered; `cannot_act`: resources whose devices answer but cannot act
-    now, with what a person must do (`hw.adapter.AdapterReport.cannot_act`).
+    now, with what a person must do (`hw.adapter.AdapterReport.cannot_act`); `silent`:
+    resources with a device its driver judged not answering, and why; `stale`: the
+    variables of such devices without a resource (a PLC), and why.
     """
 
     measured: Mapping[str, Value] = field(default_factory=dict)
     observed: Mapping[str, Value] = field(default_factory=dict)
     heartbeats: frozenset[str] = frozenset()
     cannot_act: Mapping[str, str] = field(default_factory=dict)
+    silent: Mapping[str, str] = field(default_factory=dict)
+    stale: Mapping[str, str] = field(default_factory=dict)
 
 
 class Devices(Protocol):

@@ -29,6 +29,7 @@ from hw.ur.adapter import RobotAdapter
 from hw.ur.driver import URDriver
 from hw.watch import WatchAdapter
 from planner.model.expressions import Value
+from planner.model.flat import VariableKind
 from planner.model.station import Station
 
 
@@ -77,6 +78,11 @@ def make_adapter(
             return WatchAdapter(spec, card, done, start, answer_after)
 
 
+def _silence(adapter: Adapter) -> str:
+    """Why a device does not answer, in its driver's words."""
+    return f"{adapter.spec.name} does not answer: {adapter.status().error or 'no fresh data'}"
+
+
 class StationDevices:
     """The devices of a device file (it is `hw.devices.Devices`; see the module docstring)."""
 
@@ -104,6 +110,9 @@ class StationDevices:
         self.owner = {w.variable: a for a in self.adapters for w in a.spec.wires}
         self.values = dict(start)  # the last measured values and commands, for maintenance
         self.now = 0.0
+        # the adapters that answered since they (re)started: one that stops answering is
+        # said at once; one that has not answered yet is the heartbeat time-out's
+        self.heard: set[int] = set()
         for each in self.adapters:
             each.start()
 
@@ -118,6 +127,8 @@ class StationDevices:
         observed: dict[str, Value] = {}
         alive: dict[str, bool] = {}
         cannot_act: dict[str, list[str]] = {}
+        silent: dict[str, list[str]] = {}
+        stale: dict[str, str] = {}
         for each in self.adapters:
             report = each.read()
             measured.update(report.measured)
@@ -127,13 +138,26 @@ class StationDevices:
                 alive[resource] = alive.get(resource, True) and report.alive
                 if report.alive and report.cannot_act:
                     cannot_act.setdefault(resource, []).append(report.cannot_act)
+            if report.alive:
+                self.heard.add(id(each))
+            elif id(each) in self.heard:  # it answered since it (re)started, and stopped
+                why = _silence(each)
+                if resource:
+                    silent.setdefault(resource, []).append(why)
+                else:
+                    stale.update(
+                        (w.variable, why)
+                        for w in each.spec.wires
+                        if w.kind is not VariableKind.COMMAND
+                    )
         if self.world is not None:
             observed.update(self.world.take_observed())
         self.values.update(measured)
         self.values.update(observed)
         heartbeats = frozenset(r for r, ok in alive.items() if ok)
         halted = {r: "; ".join(why) for r, why in cannot_act.items() if r in heartbeats}
-        return DeviceReport(measured, observed, heartbeats - halted.keys(), halted)
+        said = {r: "; ".join(why) for r, why in silent.items()}
+        return DeviceReport(measured, observed, heartbeats - halted.keys(), halted, said, stale)
 
     def write(self, commands: Mapping[str, Value]) -> None:
         self.values.update(commands)
@@ -161,6 +185,7 @@ class StationDevices:
         for each in self.adapters:
             each.restart(start, now)
         self.values = dict(start)
+        self.heard.clear()
 
     def wait_until_ready(self, timeout: float, poll: float = 0.1) -> list[str]:
         """Waits (before the station's clock starts) until every device answers, as a station

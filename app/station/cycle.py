@@ -101,6 +101,8 @@ class StationCycle:
             report.heartbeats,
             tuple(actions),
             cannot_act=report.cannot_act,
+            silent=report.silent,
+            stale=report.stale,
         )
         result = self.runner.tick(self.state, inputs, now)
         self.state = result.state

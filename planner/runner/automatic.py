@@ -9,10 +9,15 @@ fixed.
 
 from __future__ import annotations
 
+from itertools import product
+from math import prod
+
 from planner.model.semantics import State
 from planner.runner.observing import happened
 from planner.runner.tick import Tick
 from planner.runner.vocabulary import EventKind
+
+MAX_UNKNOWN = 4096  # value combinations of stale variables an automatic guard is tried on
 
 
 def settle(tick: Tick) -> None:
@@ -28,7 +33,7 @@ def settle(tick: Tick) -> None:
     candidates = candidate_automatics(tick, current)
     fired = False
     for _ in range(tick.config.max_automatic_steps):
-        chosen = next((k for k in sorted(candidates) if automatics[k].guard(current)), None)
+        chosen = next((k for k in sorted(candidates) if may_fire(tick, k, current)), None)
         if chosen is None:
             if fired:
                 tick.set_values(current)
@@ -49,6 +54,45 @@ def settle(tick: Tick) -> None:
         why=f"more than {tick.config.max_automatic_steps} automatic steps in a row; "
         "automatic steps are halted until the model is fixed",
     )
+
+
+def may_fire(tick: Tick, k: int, current: State) -> bool:
+    """Whether automatic transition k fires: its guard holds whatever the values it reads
+    that nobody vouches for now are (the measured variables of a resource that does not
+    answer, the variables of a silent device without one).  Those are what the station saw
+    last, not what is: a frozen robot stream still says "on bolt pair 1" while the robot
+    stands on pair 2, and finishing pair 1 there would stop the nutrunner on pair 2's bolts.
+    A guard that does not read them is taken as it is (a robot's silence does not stop the
+    other robot's tightening)."""
+    guard = tick.index.semantics.automatic[k].guard
+    if not guard(current):
+        return False
+    unknown = stale_reads(tick, k)
+    if not unknown:
+        return True
+    domains = [tick.index.model.variables[p].domain for p in unknown]
+    if prod(len(d) for d in domains) > MAX_UNKNOWN:
+        return False  # too many to look at: wait until they are known again
+    varied = list(current)
+    for values in product(*domains):
+        for position, value in zip(unknown, values, strict=True):
+            varied[position] = value
+        if not guard(tuple(varied)):
+            return False
+    return True
+
+
+def stale_reads(tick: Tick, k: int) -> list[int]:
+    """The positions of the variables automatic k's guard reads whose values are stale."""
+    state = tick.state
+    if not state.stale and not state.unavailable:
+        return []
+    index = tick.index
+    stale = set(state.stale)
+    for resource in state.unavailable - state.cannot_act.keys():  # those that answer: trusted
+        stale |= index.resource_measured.get(resource, frozenset())
+    position = index.model.variable_index
+    return sorted(position[n] for n in index.automatic_reads[k] & stale)
 
 
 def candidate_automatics(tick: Tick, current: State) -> set[int]:

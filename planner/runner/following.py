@@ -21,7 +21,7 @@ from planner.model.flat import UNCONTROLLABLE, TransitionKind
 from planner.model.semantics import State
 from planner.planning.partial_order import blocks
 from planner.planning.query import PlanResult
-from planner.runner.automatic import automatic_enabled, settle
+from planner.runner.automatic import automatic_enabled, may_fire, settle
 from planner.runner.queries import disabled
 from planner.runner.state import TransitionPlan
 from planner.runner.tick import Tick
@@ -120,8 +120,14 @@ def held_back(tick: Tick, name: str) -> str:
         return "a restart ability: it is used in restart mode only"
     current = tick.current()
     if automatic_enabled(tick, current):
-        first = next(a.name for a in tick.index.semantics.automatic if a.guard(current))
-        return f"automatic transition {first} is enabled and goes first"
+        automatics = tick.index.semantics.automatic
+        k = next(k for k, a in enumerate(automatics) if a.guard(current))
+        if may_fire(tick, k, current):
+            return f"automatic transition {automatics[k].name} is enabled and goes first"
+        return (
+            f"automatic transition {automatics[k].name} goes first and waits until what it"
+            " reads is known again (a device does not answer)"
+        )
     return ""
 
 

@@ -21,6 +21,7 @@ from planner.runner.vocabulary import EventKind, ReplanReason
 
 def take_inputs(tick: Tick, inputs: Inputs) -> None:
     take_heartbeats(tick, inputs.heartbeats, inputs.cannot_act)
+    take_silence(tick, inputs.silent, inputs.stale)
     values = tick.state.values
     changed = {
         name: value
@@ -60,6 +61,7 @@ def take_heartbeats(
         state.cannot_act.pop(resource, None)
         if resource in state.unavailable:
             state.unavailable.discard(resource)
+            state.automatics_settled_at = None  # those that waited for its values: look again
             tick.availability_changed.add(resource)
             tick.cause_gone()
             tick.emit(EventKind.AVAILABLE, resource)
@@ -73,6 +75,37 @@ def take_heartbeats(
             tick.availability_changed.add(resource)
             tick.emit(EventKind.UNAVAILABLE, resource, silent_for=round(tick.now - heard, 3))
             tick.replan_transitions(ReplanReason.AVAILABILITY)
+
+
+def take_silence(tick: Tick, silent: Mapping[str, str], stale: Mapping[str, str]) -> None:
+    """Devices whose drivers judged their link (no fresh data, nonsense): a resource's is
+    unavailable at once, since its values are stale now and waiting the heartbeat time-out
+    too would let the runner act on them (a frozen robot stream: the pose of a second ago);
+    a device without a resource (a PLC) makes its variables stale (`RunnerState.stale`)
+    until it answers again."""
+    state = tick.state
+    for resource, why in sorted(silent.items()):
+        if resource in state.unavailable:
+            continue
+        state.unavailable.add(resource)
+        state.cannot_act.pop(resource, None)
+        tick.availability_changed.add(resource)
+        tick.emit(EventKind.UNAVAILABLE, resource, why=why)
+        tick.replan_transitions(ReplanReason.AVAILABILITY)
+    if dict(stale) == state.stale:
+        return
+    fresh = sorted(state.stale.keys() - stale.keys())
+    if fresh:
+        tick.emit(EventKind.FRESH, ", ".join(fresh))
+        tick.errors_may_clear = True
+        state.automatics_settled_at = None  # those that waited for their values: look again
+    newly: dict[str, list[str]] = {}
+    for name, why in sorted(stale.items()):
+        if state.stale.get(name) != why:
+            newly.setdefault(why, []).append(name)
+    for why, names in newly.items():
+        tick.emit(EventKind.STALE, ", ".join(names), why=why)
+    state.stale = dict(stale)
 
 
 def explain(tick: Tick, changed: dict[str, Value]) -> None:

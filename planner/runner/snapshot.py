@@ -61,6 +61,7 @@ _ADDED = {
     "announced": [],
     "maintenance_due": False,
     "cannot_act": {},
+    "stale": {},
 }
 
 T = TypeVar("T")
@@ -119,6 +120,7 @@ def _fields(state: RunnerState) -> dict[str, Any]:
         "announced": list(state.announced),
         "maintenance_due": state.maintenance_due,
         "cannot_act": dict(state.cannot_act),
+        "stale": dict(state.stale),
     }
 
 
@@ -281,6 +283,10 @@ class _Loader:
             "cannot_act": {
                 name: self.check(why, str, f"cannot_act['{name}']")
                 for name, why in self.mapping(data["cannot_act"], "resource", "cannot_act").items()
+            },
+            "stale": {
+                name: self.check(why, str, f"stale['{name}']")
+                for name, why in self.mapping(data["stale"], "variable", "stale").items()
             },
         }
 

@@ -162,6 +162,9 @@ class RunnerState:
     # resources unavailable because their devices say they cannot act, and what a person
     # must do (`Inputs.cannot_act`)
     cannot_act: dict[str, str] = field(default_factory=dict)
+    # variables whose devices (without a resource: a PLC) do not answer, and why
+    # (`Inputs.stale`); automatic steps do not trust them (`automatic.may_fire`)
+    stale: dict[str, str] = field(default_factory=dict)
     effect_enabled_since: dict[str, float] = field(default_factory=dict)
     timed_out: set[str] = field(default_factory=set)
     reminded: dict[str, int] = field(default_factory=dict)  # a person's effect: reminders sent
@@ -205,6 +208,7 @@ class RunnerState:
             last_heard=dict(self.last_heard),
             unavailable=set(self.unavailable),
             cannot_act=dict(self.cannot_act),
+            stale=dict(self.stale),
             effect_enabled_since=dict(self.effect_enabled_since),
             timed_out=set(self.timed_out),
             reminded=dict(self.reminded),

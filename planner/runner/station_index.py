@@ -77,6 +77,11 @@ class StationIndex:
             name: station.owner_of(name) for r in station.resources for name in r.transitions
         }
         self.resource_transitions = {r.name: frozenset(r.transitions) for r in station.resources}
+        # what a resource measures: stale while it does not answer
+        self.resource_measured = {
+            r.name: frozenset(v for v in r.variables if v in self.measured)
+            for r in station.resources
+        }
         # the transitions of people's resources (their steps are people's to do), and the
         # effects among them: never timed out as a device's would be
         self.person_transitions = frozenset(
@@ -100,8 +105,10 @@ class StationIndex:
                 self.invariants_reading[position[name]].append(k)
         self.automatics_reading: list[list[int]] = [[] for _ in model.variables]
         self.automatic_writes: list[list[int]] = []
+        self.automatic_reads: list[frozenset[str]] = []
         for k, automatic in enumerate(semantics.automatic):
-            for name in variables_of(automatic.transition.guard):
+            self.automatic_reads.append(frozenset(variables_of(automatic.transition.guard)))
+            for name in self.automatic_reads[k]:
                 self.automatics_reading[position[name]].append(k)
             written = {position[a.target] for a in automatic.transition.actions}
             self.automatic_writes.append(sorted(written))

@@ -55,7 +55,10 @@ class Inputs:
     sec. 6.4); `heartbeats` names the resources that answered since the last tick;
     `cannot_act` the resources whose devices answer but say they cannot act now, each with
     what a person must do about it (a robot in a protective stop, powered off), in words
-    that name things by their model names.
+    that name things by their model names; `silent` the resources whose devices say they
+    do not answer now (their drivers judged the link: no fresh data, nonsense), each with
+    why: unavailable at once, not only after the heartbeat time-out; `stale` the variables
+    of devices without a resource (a PLC) that do not answer, each with why.
     """
 
     measured: Mapping[str, Value] = field(default_factory=dict)
@@ -63,6 +66,8 @@ class Inputs:
     heartbeats: frozenset[str] = frozenset()
     actions: tuple[Action, ...] = ()
     cannot_act: Mapping[str, str] = field(default_factory=dict)
+    silent: Mapping[str, str] = field(default_factory=dict)
+    stale: Mapping[str, str] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

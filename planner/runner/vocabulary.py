@@ -139,6 +139,8 @@ class EventKind(StrEnum):
     REENABLED = "reenabled"  # a timed-out effect is usable again
     UNAVAILABLE = "unavailable"  # a resource stopped answering
     AVAILABLE = "available"  # it answers again
+    STALE = "stale"  # a device without a resource stopped answering: its values are stale
+    FRESH = "fresh"  # it answers again: its values are trusted again
     INTENTION = "intention"  # an intention changed state (i, e, f, error)
     OPERATION = "operation"  # an operation changed state (i, e, error)
     PLAN = "plan"  # a planning action: level OP or TP, flags, reason, status

@@ -26,7 +26,7 @@ from planner.model.station import Station
 from planner.planning.operation_planner import OperationPlanner
 from planner.planning.transition_planner import TransitionPlanner
 from planner.reading import load_station
-from planner.runner import Runner, RunnerConfig
+from planner.runner import EventKind, Runner, RunnerConfig
 from tests.support.paths import REPOSITORY
 
 ROOT = REPOSITORY
@@ -109,3 +109,40 @@ def test_people_s_changes_reach_the_runner_as_observed_product_states(running: R
     running.run_until(lambda: running.cycle.state.values["bp2.state"] == "placed", 30.0)
     running.emulated.devices.inject(Fault(FaultKind.SET, values={"mir.docked": False}))
     running.run_until(lambda: running.cycle.state.values["mir.docked"] is False, 30.0)
+
+
+def test_a_silent_plc_makes_what_it_reports_stale_until_it_answers(running: Running) -> None:
+    """The PLC serves no resource, so it has no heartbeat to miss: its driver's judgement
+    makes its variables stale (said once, with why), and fresh again when it answers."""
+    state = lambda: running.cycle.state  # noqa: E731
+    running.run_until(lambda: not state().unavailable and not state().stale, 30.0)
+    wired = {w.variable for d in running.devices.devices if d.name == "plc" for w in d.wires}
+    running.emulated.world.request("plc", {"op": "network", "mode": "refuse"})
+    running.run_until(lambda: bool(state().stale), 30.0)
+    assert set(state().stale) == wired and not state().unavailable
+    assert all(why.startswith("plc does not answer: ") for why in state().stale.values())
+    running.emulated.world.request("plc", {"op": "network", "mode": "up"})
+    running.run_until(lambda: not state().stale, 30.0)
+
+
+def test_a_robot_its_driver_calls_silent_is_unavailable_at_once_with_why(
+    running: Running,
+) -> None:
+    """A frozen RTDE stream: unavailable as soon as the driver judges it (its 1 s), not
+    after the runner's heartbeat time-out as well; back when the data move again."""
+    state = lambda: running.cycle.state  # noqa: E731
+    running.run_until(lambda: not state().unavailable, 30.0)
+    running.emulated.world.request("r1", {"op": "freeze", "on": True})
+    try:
+        said = []
+        deadline = time.monotonic() + 30.0
+        while not said and time.monotonic() < deadline:
+            events = running.cycle.step(time.monotonic()).events
+            said = [e for e in events if e.kind is EventKind.UNAVAILABLE and e.subject == "r1"]
+            time.sleep(PERIOD)
+        [event] = said
+        assert str(event.detail["why"]).startswith("r1 does not answer: "), event
+        assert "silent_for" not in event.detail  # not the runner's heartbeat time-out
+    finally:
+        running.emulated.world.request("r1", {"op": "freeze", "on": False})
+    running.run_until(lambda: "r1" not in state().unavailable, 30.0)

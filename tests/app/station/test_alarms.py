@@ -589,3 +589,20 @@ def test_a_dead_end_alarm_names_the_cause_and_whom_it_waits_for(
     assert "the scan found nothing happened instead of tools located" in alarm.message
     assert not set(re.findall(r"[\w.]+", alarm.message)) & identifiers(station), alarm.message
     assert "mend the cause, or decide in restart mode" in alarm.message
+
+
+def test_a_silent_device_without_a_resource_raises_a_stale_values_alarm_in_words(
+    demo: tuple[Station, Planners],
+) -> None:
+    station, planners = demo
+    runner = Runner(station, planners.transition, planners.operation)
+    state = runner.initial(0.0)
+    why = "plc does not answer: no good answer for 1.2 s"
+    state.stale = {"agv.engine": why, "bp1.state": why}
+    found = conditions(runner, state)
+    (stale,) = [c for c in found.values() if c.key.startswith("stale:")]
+    assert stale.key == "stale:agv.engine,bp1.state" and stale.priority is Priority.HIGH
+    assert stale.message.startswith("plc does not answer") and "bolt pair 1" in stale.message
+    assert "bp1.state" not in stale.message
+    state.stale = {}
+    assert not [k for k in conditions(runner, state) if k.startswith("stale:")]

@@ -143,8 +143,9 @@ def test_the_scenarios_exercise_every_stored_field(runs: dict[str, Run]) -> None
     names = {f.name for f in fields(RunnerState)} - CACHES
     used = {n for run in runs.values() for s in sampled(run.states) for n in names if getattr(s, n)}
     # no scenario here rejects a step, cycles, has a late effect, a person long away or a
-    # robot that says it cannot move (that one: tests/planner/runner/test_cannot_act.py)
-    assert names - used == {"rejected", "halted", "resumable", "reminded", "cannot_act"}
+    # robot that says it cannot move (that one: tests/planner/runner/test_cannot_act.py) or a
+    # silent device without a resource (tests/planner/runner/test_stale_values.py)
+    assert names - used == {"rejected", "halted", "resumable", "reminded", "cannot_act", "stale"}
 
 
 def test_rejected_steps_a_halt_a_late_effect_and_reminders_round_trip(
@@ -162,6 +163,7 @@ def test_rejected_steps_a_halt_a_late_effect_and_reminders_round_trip(
         reminded={"operator.confirm": 2},
         unavailable={"r2"},
         cannot_act={"r2": "r2 is in a protective stop: release it on r2's teach pendant"},
+        stale={"agv.engine": "plc does not answer: no good answer for 1.2 s"},
     )
     assert_round_trip(run.runner, rare)
 

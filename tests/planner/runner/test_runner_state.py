@@ -49,6 +49,7 @@ def _filled() -> RunnerState:
         last_heard={"r1": 1.0},
         unavailable={"r1"},
         cannot_act={"r1": "r1 is in a protective stop: release it on r1's teach pendant"},
+        stale={"agv.engine": "plc does not answer: no good answer for 1.2 s"},
         effect_enabled_since={"r1.arrive": 1.0},
         timed_out={"r1.arrive"},
         reminded={"r1.arrive": 1},
