@@ -45,6 +45,12 @@ def parser() -> argparse.ArgumentParser:
         help="play on emulated devices (started from this device file) in real time, "
         "through ur_rtde and Modbus TCP",
     )
+    run.add_argument(
+        "--running-emulators",
+        action="store_true",
+        help="with --devices: use the emulators already serving the device file (sp emulate) "
+        "instead of starting them; the run puts them back to its start first",
+    )
     run.add_argument("--json", action="store_true", help="print events as JSON lines")
     run.add_argument(
         "--sequential",

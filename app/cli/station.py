@@ -231,17 +231,33 @@ def _emulated(
 ) -> Devices | None:
     """`--devices FILE`: the emulators of the device file, and the station's devices on them."""
     if not args.devices:
+        if args.running_emulators:
+            raise UsageError("--running-emulators needs --devices FILE")
         return None
-    from app.station.emulated import emulate, start_values
+    from app.station.emulated import attach_to, emulate, start_values
     from app.station.scenario import person_delay_of
+    from hw.emulator_kit.control import ControlError
     from hw.emulator_kit.process import EmulatorFailed
 
     devices = device_file(args.devices, station)
     start = start_values(station, scenario.start)
-    try:
-        emulated = emulate(station, devices, start, answer_after=person_delay_of(scenario, station))
-    except EmulatorFailed as exc:
-        raise UsageError(f"{args.devices}: the emulators did not start: {exc}") from None
+    answer_after = person_delay_of(scenario, station)
+    if args.running_emulators:
+        try:
+            emulated = attach_to(station, devices, start, answer_after=answer_after)
+        except (EmulatorFailed, ControlError) as exc:
+            raise UsageError(
+                f"{args.devices}: no running emulators to use ({exc}); start them with "
+                f"'sp emulate {args.devices}' or leave out --running-emulators"
+            ) from None
+    else:
+        try:
+            emulated = emulate(station, devices, start, answer_after=answer_after)
+        except EmulatorFailed as exc:
+            raise UsageError(
+                f"{args.devices}: the emulators did not start: {exc} (if they already "
+                "serve, from 'sp emulate', add --running-emulators)"
+            ) from None
     stack.enter_context(emulated)
     silent = emulated.devices.wait_until_ready(STARTUP_TIMEOUT)
     if silent:

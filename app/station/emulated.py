@@ -16,7 +16,7 @@ from pathlib import Path
 
 from hw.device_file import load_devices
 from hw.device_file.spec import DeviceFile
-from hw.emulation.launch import Emulators, launch
+from hw.emulation.launch import Emulators, attach, launch
 from hw.emulation.world import EmulatedWorld
 from hw.station_devices import StationDevices
 from planner.model.expressions import Value
@@ -68,6 +68,29 @@ def emulate(
     emulators = launch(devices, start, hosts=hosts, any_port=any_port)
     try:
         world = EmulatedWorld(emulators.devices, emulators.controls, station)
+        on = StationDevices(
+            emulators.devices, station, start, world=world, answer_after=answer_after
+        )
+    except BaseException:
+        emulators.stop()
+        raise
+    return EmulatedStation(emulators, world, on)
+
+
+def attach_to(
+    station: Station,
+    devices: DeviceFile,
+    start: Mapping[str, Value],
+    *,
+    answer_after: float | None = None,
+) -> EmulatedStation:
+    """The station's devices on emulators already serving `devices` (`sp emulate`): the
+    world is put back to `start` first (faults cleared, robots moved there by hand, Modbus
+    devices restarted showing it), as for an experiment; the emulators keep running after."""
+    emulators = attach(devices)
+    try:
+        world = EmulatedWorld(emulators.devices, emulators.controls, station)
+        world.restart(start)
         on = StationDevices(
             emulators.devices, station, start, world=world, answer_after=answer_after
         )

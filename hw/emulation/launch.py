@@ -17,7 +17,7 @@ from dataclasses import dataclass, field, replace
 
 from hw.device_file.spec import DeviceFile, DeviceSpec, DriverKind, RobotRole
 from hw.emulation.scene import Scene
-from hw.emulator_kit.control import control
+from hw.emulator_kit.control import ControlError, control
 from hw.emulator_kit.process import EmulatorFailed, EmulatorProcess, start
 from hw.modbus.maps import register_map
 from planner.model.expressions import Value
@@ -72,6 +72,28 @@ def launch(
         running.stop()
         raise EmulatorFailed("; ".join(problems))
     return _connected(running, start_values)
+
+
+def attach(devices: DeviceFile) -> Emulators:
+    """The emulators already serving a device file (`sp emulate` started them): their
+    control channels at the file's ports, each asked for its state once, so that a device
+    nobody serves is said now (`EmulatorFailed`), not as silence later."""
+    running = Emulators(devices)
+    problems = []
+    for device in devices.devices:
+        if device.driver is DriverKind.WATCH:
+            continue
+        where = (device.host, device.emulation.control_port)
+        try:
+            control(*where, {"op": "state"})
+        except ControlError as problem:
+            problems.append(f"{device.name}: {problem}")
+            continue
+        running.controls[device.name] = where
+    if problems:
+        raise EmulatorFailed("; ".join(problems))
+    running.scene = Scene(running.devices, running.controls)
+    return running
 
 
 def _start(

@@ -90,6 +90,11 @@ def cannot_move(robot: str, reading: URReading) -> str:
     if mode == Mode.BACKDRIVE:
         return f"{robot} is in backdrive (moved by hand): leave backdrive {pendant}"
     if reading.runtime_state != Runtime.PLAYING:
+        # the driver uploads its control script again by itself (hw.ur.driver_child): a
+        # person is needed only when that cannot work, with the robot in local control
         state = Runtime(reading.runtime_state).name.lower()
-        return f"{robot}'s program is {state}: start it again {pendant}"
+        return (
+            f"{robot}'s program is {state}: the station starts it again; if it stays so, "
+            f"switch {robot} to remote control {pendant}"
+        )
     return ""

@@ -19,6 +19,7 @@ from typing import Any
 import pytest
 import yaml
 
+from hw.faults import DEVICE_FAULTS
 from hw.ur.emulator.launch import free_block, on_block
 from tests.support.one_at_a_time import one_at_a_time
 from tests.support.paths import REPOSITORY
@@ -63,7 +64,7 @@ def test_there_is_a_play_for_each_kind_the_issue_names() -> None:
         for path in SCENARIOS
         for fault in yaml.safe_load(path.read_text()).get("faults", [])
     }
-    assert {"protective_stop", "power", "restart", "garbage"} <= kinds, kinds
+    assert {kind.value for kind in DEVICE_FAULTS} <= kinds, kinds
 
 
 @pytest.mark.parametrize("path", SCENARIOS, ids=lambda p: p.stem)
@@ -103,6 +104,24 @@ def test_a_robot_that_cannot_move_is_named_with_what_a_person_does_not_as_silent
         first = next(e for e in events if e["kind"] == "unavailable" and e["subject"] == "r1")
         assert says in first.get("why", "") and "silent_for" not in first, first
         assert [e for e in events if e["kind"] == "available" and e["subject"] == "r1"]
+
+
+def test_a_frozen_robot_stream_finishes_no_bolt_pair_on_the_stale_pose(
+    played: dict[str, tuple[list[dict[str, Any]], str]],
+) -> None:
+    """r1's data froze on its way from bolt pair 1 to pair 2, and the nut bit on pair 2 meanwhile:
+    r1 is unavailable as soon as its driver says the data are stale, no pair is finished while
+    it is, and the pair finished when it answers again is pair 2."""
+    events, _ = played["r1_stream_frozen_going_down_on_bolts"]
+    kinds = [(e["kind"], e["subject"]) for e in events]
+    lost = kinds.index(("unavailable", "r1"))
+    assert "silent_for" not in events[lost] and "does not answer" in events[lost]["why"]
+    back = kinds.index(("available", "r1"), lost)
+    finished = [s for k, s in kinds[lost:back] if s.startswith("nr.run_nut.finish_")]
+    assert finished == []
+    after = [s for k, s in kinds[back:] if s.startswith("nr.run_nut.finish_")]
+    assert after[0] == "nr.run_nut.finish_bp2", after
+    assert not [e for e in events if e["kind"] == "forbidden"]
 
 
 def test_the_simulation_panel_offers_the_device_plays_on_emulated_devices_only() -> None:

@@ -38,7 +38,7 @@ def reading(
         (reading(mode=Mode.BOOTING, runtime=Runtime.STOPPED), "has no power"),
         (reading(mode=Mode.IDLE, runtime=Runtime.STOPPED), "brakes are on"),
         (reading(mode=Mode.BACKDRIVE), "backdrive"),
-        (reading(runtime=Runtime.PAUSED), "program is paused: start it again"),
+        (reading(runtime=Runtime.PAUSED), "program is paused: the station starts it again"),
         (reading(runtime=Runtime.STOPPED), "program is stopped"),
         # the most urgent first: an emergency stop of a robot that is also without power
         (
