@@ -455,3 +455,22 @@ def test_the_experiments_come_back_with_a_model_they_fit(station: RunningStation
     assert post(client, token, "/model/activate", version=1).status_code == 200
     assert len(server.experiments) == 9
     assert "e6_r2_disconnects_above_engine" in server.experiments
+
+
+def test_a_resource_that_cannot_act_shows_its_cause_not_a_silence(station: RunningStation):
+    """A protective stop: the robot answers, so the tile says what a person must do."""
+    from dataclasses import replace
+
+    from app.web.routes.station import overview_context
+
+    view = station.live.view
+    state = view.state.copy()
+    state.unavailable.add("r1")
+    state.cannot_act["r1"] = "r1 is in a protective stop: release it on r1's teach pendant"
+    state.last_heard.pop("r2", None)
+    state.unavailable.add("r2")
+    rows = {r.name: r for r in overview_context(replace(view, state=state))["resources"]}
+    assert not rows["r1"].available and rows["r1"].cannot_act == (
+        "Robot 1 is in a protective stop: release it on robot 1's teach pendant"
+    )
+    assert not rows["r2"].available and rows["r2"].cannot_act == ""

@@ -48,6 +48,8 @@ class ResourceRow:
     available: bool
     silent: int  # seconds without an answer
     doing: str  # what it does now, in words ("" if nothing)
+    # it answers but cannot act (a protective stop), and what a person must do ("" if not)
+    cannot_act: str = ""
 
 
 def overview_context(view: StationView) -> dict[str, Any]:
@@ -67,6 +69,7 @@ def overview_context(view: StationView) -> dict[str, Any]:
             r.name not in s.unavailable,
             int(view.now - s.last_heard.get(r.name, view.now)),
             doing.get(r.name, ""),
+            sentence(words.text(s.cannot_act[r.name])) if r.name in s.cannot_act else "",
         )
         for r in station.resources
     ]
