@@ -77,11 +77,12 @@ def operate(
             on_card(kind, title, card)
         button = "Approve" if kind == "approval" else "Done"
         card.get_by_role("button", name=button).click()
-        # the answer replaces the cards once the runner has taken the tap
+        # the answer replaces the cards once the runner has taken the tap (a loaded shared
+        # machine has stalled this past 15 s once)
         page.wait_for_function(
             "key => !document.getElementById(key) || !document.getElementById(key).isConnected",
             arg=key,
-            timeout=15_000,
+            timeout=30_000,
         )
     return seen
 

@@ -134,7 +134,10 @@ def test_model_bombs_stall_neither_the_loop_nor_the_server(guarded: RunningStati
     assert {status for status, _ in answers} == {422}, answers[:5]
     assert all("line" in detail for _, detail in answers)
     gaps, stalled = station_gaps(guarded, max(began, watched), ended, machine)
-    assert len(gaps) >= 40, (len(gaps), stalled, machine["stalls"])  # 8 s of 0.1 s rounds
+    # 8 s of 0.1 s rounds: the loop kept its period; the rounds a stall of the whole machine
+    # overlapped are left out of the measure (a throttled host took 39 of 74 once), so
+    # enough must be left to measure
+    assert len(gaps) + stalled >= 60 and len(gaps) >= 20, (len(gaps), stalled, machine["stalls"])
     p99 = gaps[math.ceil(0.99 * len(gaps)) - 1]
     assert p99 < 0.150, (p99, gaps[-5:], stalled)  # before: gaps of 0.9-1.9 s
     starts = [start for start, _, _ in guarded.live.loop.rounds if began <= start <= ended]
