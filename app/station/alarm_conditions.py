@@ -100,9 +100,6 @@ def _not_answering(runner: Runner, state: RunnerState, words: Wording) -> list[C
 def _stale(state: RunnerState, words: Wording) -> list[Condition]:
     """A device without a resource (a PLC) that does not answer: what it reports is stale,
     and automatic steps that read it wait."""
-    by_why: dict[str, list[str]] = {}
-    for name, why in sorted(state.stale.items()):
-        by_why.setdefault(why, []).append(name)
     return [
         Condition(
             "stale:" + ",".join(names),
@@ -110,7 +107,7 @@ def _stale(state: RunnerState, words: Wording) -> list[Condition]:
             f"{words.text(why)}; the last values it sent are not trusted "
             f"({', '.join(words.variable(n) for n in names)}): steps that read them wait",
         )
-        for why, names in by_why.items()
+        for why, names in state.stale_by_why().items()
     ]
 
 

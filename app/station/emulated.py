@@ -66,15 +66,7 @@ def emulate(
     that many seconds (headless runs), None for people at the HMI.
     """
     emulators = launch(devices, start, hosts=hosts, any_port=any_port)
-    try:
-        world = EmulatedWorld(emulators.devices, emulators.controls, station)
-        on = StationDevices(
-            emulators.devices, station, start, world=world, answer_after=answer_after
-        )
-    except BaseException:
-        emulators.stop()
-        raise
-    return EmulatedStation(emulators, world, on)
+    return _on(emulators, station, start, answer_after, put_back=False)
 
 
 def attach_to(
@@ -87,10 +79,23 @@ def attach_to(
     """The station's devices on emulators already serving `devices` (`sp emulate`): the
     world is put back to `start` first (faults cleared, robots moved there by hand, Modbus
     devices restarted showing it), as for an experiment; the emulators keep running after."""
-    emulators = attach(devices)
+    return _on(attach(devices), station, start, answer_after, put_back=True)
+
+
+def _on(
+    emulators: Emulators,
+    station: Station,
+    start: Mapping[str, Value],
+    answer_after: float | None,
+    *,
+    put_back: bool,
+) -> EmulatedStation:
+    """The station's devices on running `emulators` (stopped again if that fails);
+    `put_back`: the world is first put back to `start` (emulators started earlier)."""
     try:
         world = EmulatedWorld(emulators.devices, emulators.controls, station)
-        world.restart(start)
+        if put_back:
+            world.restart(start)
         on = StationDevices(
             emulators.devices, station, start, world=world, answer_after=answer_after
         )

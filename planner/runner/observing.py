@@ -52,9 +52,7 @@ def take_heartbeats(
             continue
         state.cannot_act[resource] = why
         if resource not in state.unavailable:
-            state.unavailable.add(resource)
-            tick.availability_changed.add(resource)
-            tick.replan_transitions(ReplanReason.AVAILABILITY)
+            unavailable(tick, resource)
         tick.emit(EventKind.UNAVAILABLE, resource, why=why)
     for resource in sorted(heartbeats - cannot_act.keys()):
         state.last_heard[resource] = tick.now
@@ -71,10 +69,8 @@ def take_heartbeats(
         if late:
             state.cannot_act.pop(resource, None)  # silent now: it is not answering at all
         if late and resource not in state.unavailable:
-            state.unavailable.add(resource)
-            tick.availability_changed.add(resource)
+            unavailable(tick, resource)
             tick.emit(EventKind.UNAVAILABLE, resource, silent_for=round(tick.now - heard, 3))
-            tick.replan_transitions(ReplanReason.AVAILABILITY)
 
 
 def take_silence(tick: Tick, silent: Mapping[str, str], stale: Mapping[str, str]) -> None:
@@ -85,13 +81,11 @@ def take_silence(tick: Tick, silent: Mapping[str, str], stale: Mapping[str, str]
     until it answers again."""
     state = tick.state
     for resource, why in sorted(silent.items()):
-        if resource in state.unavailable:
-            continue
-        state.unavailable.add(resource)
-        state.cannot_act.pop(resource, None)
-        tick.availability_changed.add(resource)
-        tick.emit(EventKind.UNAVAILABLE, resource, why=why)
-        tick.replan_transitions(ReplanReason.AVAILABILITY)
+        halted = state.cannot_act.pop(resource, None)  # silent now: its values are stale too
+        if resource not in state.unavailable or halted is not None:
+            if resource not in state.unavailable:
+                unavailable(tick, resource)
+            tick.emit(EventKind.UNAVAILABLE, resource, why=why)
     if dict(stale) == state.stale:
         return
     fresh = sorted(state.stale.keys() - stale.keys())
@@ -99,13 +93,19 @@ def take_silence(tick: Tick, silent: Mapping[str, str], stale: Mapping[str, str]
         tick.emit(EventKind.FRESH, ", ".join(fresh))
         tick.errors_may_clear = True
         state.automatics_settled_at = None  # those that waited for their values: look again
-    newly: dict[str, list[str]] = {}
-    for name, why in sorted(stale.items()):
-        if state.stale.get(name) != why:
-            newly.setdefault(why, []).append(name)
-    for why, names in newly.items():
-        tick.emit(EventKind.STALE, ", ".join(names), why=why)
+    said = state.stale
     state.stale = dict(stale)
+    for why, names in state.stale_by_why().items():
+        newly = [name for name in names if said.get(name) != why]
+        if newly:
+            tick.emit(EventKind.STALE, ", ".join(newly), why=why)
+
+
+def unavailable(tick: Tick, resource: str) -> None:
+    """The resource is unavailable from now: its transitions leave planning (replanned)."""
+    tick.state.unavailable.add(resource)
+    tick.availability_changed.add(resource)
+    tick.replan_transitions(ReplanReason.AVAILABILITY)
 
 
 def explain(tick: Tick, changed: dict[str, Value]) -> None:

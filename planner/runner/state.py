@@ -188,6 +188,13 @@ class RunnerState:
     automatics_settled_at: State | None = None
     invariants_held_at: State | None = None
 
+    def stale_by_why(self) -> dict[str, list[str]]:
+        """The stale variables grouped by why (one silent device each), in name order."""
+        groups: dict[str, list[str]] = {}
+        for name, why in sorted(self.stale.items()):
+            groups.setdefault(why, []).append(name)
+        return groups
+
     def copy(self) -> RunnerState:
         """A copy a tick may change without touching this one (expressions, tuples and
         values are immutable and shared; a deepcopy cost more than the rest of a tick)."""

@@ -154,10 +154,7 @@ def _devices(runner: Runner, state: RunnerState) -> list[Waiting]:
         else Waiting(Who.DEVICE, name, f"{name} to answer again")
         for name in sorted(state.unavailable)
     ]
-    by_why: dict[str, list[str]] = {}
-    for name, why in sorted(state.stale.items()):  # a silent device without a resource
-        by_why.setdefault(why, []).append(name)
-    for why, names in by_why.items():
+    for why, names in state.stale_by_why().items():  # a silent device without a resource
         out.append(Waiting(Who.DEVICE, ", ".join(names), f"{why}: its values are stale"))
     for plan in state.plans_followed():
         for effect in sorted(plan.expected()):

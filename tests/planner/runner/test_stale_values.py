@@ -150,3 +150,18 @@ def test_values_of_a_robot_that_answers_but_cannot_act_are_trusted() -> None:
     )
     result = r.tick(state, stopped, 0.2)
     assert [e.subject for e in result.events if e.kind is EventKind.TAKEN] == ["nr.finish_bp1"]
+
+
+def test_a_robot_that_cannot_act_and_then_goes_silent_is_no_longer_trusted() -> None:
+    r = runner()
+    state = r.tick(r.initial(0.0), Inputs(heartbeats=everyone(r)), 0.1).state
+    why = "r1 is in a protective stop: release it on r1's teach pendant"
+    state = r.tick(state, Inputs(heartbeats=everyone(r) - {"r1"}, cannot_act={"r1": why}), 0.2)
+    state = state.state
+    frozen = Inputs(measured={"nr.torque": True}, heartbeats=everyone(r) - {"r1"}, silent=FROZEN)
+    result = r.tick(state, frozen, 0.3)
+    assert result.state.cannot_act == {} and "r1" in result.state.unavailable
+    assert [e.detail["why"] for e in result.events if e.kind is EventKind.UNAVAILABLE] == [
+        FROZEN["r1"]
+    ]
+    assert not [e for e in result.events if e.kind is EventKind.TAKEN]  # r1.pos is stale now
