@@ -36,6 +36,9 @@ class Condition:
     priority: Priority
     message: str  # plain words for an operator: what is wrong and what it affects
     resource: str = ""  # the resource it concerns, for the audit log's filter ("" if none)
+    # what follows from it, in words (app.station.alarm_grouping): listed, not raised
+    consequences: tuple[str, ...] = ()
+    grouped: tuple[str, ...] = ()  # their keys
 
 
 def conditions(
@@ -53,6 +56,7 @@ def conditions(
         *_intentions_in_error(runner, state, said),
         *_operations_in_error(runner, state, said),
         *_timed_out(runner, state, said),
+        *_people_waited_for(runner, state, said),
     ]
     return {condition.key: condition for condition in found}
 
@@ -152,6 +156,27 @@ def _timed_out(runner: Runner, state: RunnerState, words: Wording) -> list[Condi
         )
         for name in sorted(state.timed_out)
     ]
+
+
+ESCALATE_AFTER = 2  # reminders: the first buzzes the person's watch, the second the shift
+
+
+def _people_waited_for(runner: Runner, state: RunnerState, words: Wording) -> list[Condition]:
+    """A person's step that waited through `ESCALATE_AFTER` reminders: the watch reminded
+    them and nothing happened, so the shift is told (a person is never timed out)."""
+    found = []
+    every = runner.config.reminder or 0.0
+    for name, reminders in sorted(state.reminded.items()):
+        if reminders < ESCALATE_AFTER or name not in state.effect_enabled_since:
+            continue
+        owner = runner.station.owner_of(name)
+        minutes = max(1, int(reminders * every // 60))
+        message = (
+            f"{words.step(name)}: the station has waited {minutes} min for "
+            f"{words.resource(owner)}, who was reminded and has not done it"
+        )
+        found.append(Condition(f"waiting:{name}", Priority.MEDIUM, message, owner))
+    return found
 
 
 def _operation_message(runner: Runner, state: RunnerState, words: Wording, name: str) -> str:

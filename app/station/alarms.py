@@ -65,6 +65,9 @@ class Alarm:
     shelved_until: float | None = None
     # the state it was shelved from, for the record: unshelving follows the condition
     shelved_state: AlarmState | None = None
+    # what follows from it, in words: grouped under it, not raised (app.station.alarm_grouping)
+    consequences: tuple[str, ...] = ()
+    grouped: tuple[str, ...] = ()  # their condition keys: they stay under it while they hold
 
     @property
     def waiting(self) -> bool:
@@ -111,7 +114,8 @@ class AlarmBook:
                 alarm = Alarm(key, condition.priority, "", "", AlarmState.NORMAL, False, now)
                 self._alarms[key] = alarm
             alarm.priority, alarm.message = condition.priority, condition.message
-            alarm.resource = condition.resource
+            alarm.resource, alarm.consequences = condition.resource, condition.consequences
+            alarm.grouped = condition.grouped
             if alarm.active:
                 continue
             alarm.active, alarm.raised_at, alarm.returned_at = True, now, None
@@ -210,6 +214,17 @@ class AlarmBook:
             key=lambda a: (a.state is not AlarmState.UNACKED, a.priority.rank, -a.raised_at, a.key)
         )
         return [replace(a) for a in shown]
+
+    def active(self) -> dict[str, Alarm]:
+        """Copies of the alarms whose condition holds (shelved ones too), by key."""
+        return {a.key: replace(a) for a in self._alarms.values() if a.active}
+
+    def first_out(self) -> str | None:
+        """The key of the first alarm out among those active and shown: where a cascade began."""
+        shown = [a for a in self._alarms.values() if a.active and a.state is not AlarmState.SHELVED]
+        if not shown:
+            return None
+        return min(shown, key=lambda a: (a.raised_at, a.priority.rank, a.key)).key
 
     def alarm(self, key: str) -> Alarm:
         return replace(self._get(key))

@@ -127,6 +127,8 @@ def alarm_entry(change: AlarmChange) -> AuditEntry:
         "priority": str(alarm.priority),
         "message": alarm.message,
     }
+    if alarm.consequences:
+        detail["consequences"] = list(alarm.consequences)
     if change.note:
         detail["note"] = change.note
     return AuditEntry(AuditKind.ALARM, change.key, change.user or "", alarm.resource, detail)
@@ -142,6 +144,8 @@ def alarm_from_json(text: str) -> Alarm:
     data["state"] = AlarmState(data["state"])
     if data.get("shelved_state") is not None:
         data["shelved_state"] = AlarmState(data["shelved_state"])
+    data["consequences"] = tuple(data.get("consequences", ()))
+    data["grouped"] = tuple(data.get("grouped", ()))
     return Alarm(**data)
 
 

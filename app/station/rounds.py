@@ -33,6 +33,7 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 from app.station import records
+from app.station.alarm_grouping import rationalise
 from app.station.alarms import AlarmChange, conditions
 from app.station.cycle import CycleResult
 from app.station.page_updates import PageUpdates
@@ -107,9 +108,15 @@ def record_events(running: Running, round_: Round) -> None:
 
 
 def keep_alarms(running: Running, round_: Round) -> None:
+    """One alarm per fault (`app.station.alarm_grouping`): consequences are listed under
+    their root, and a device still starting up is not a fault."""
     found = conditions(running.runner, running.state, running.model.words)
     found.update(running.notices)
-    for change in running.book.update(found, round_.wall):
+    if round_.reset:
+        running.startup.restart(round_.now)
+    quiet = running.startup.quiet(running.state, round_.now)
+    alarms = rationalise(found, running.book.active(), quiet)
+    for change in running.book.update(alarms, round_.wall):
         round_.alarm_changed(change)
     why = round_.boundary()
     if why:

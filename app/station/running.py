@@ -14,6 +14,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 from app.history.durations import Durations
+from app.station.alarm_grouping import StartUp
 from app.station.alarms import AlarmBook, Condition
 from app.station.cycle import StationCycle
 from app.station.planning_worker import PlanningWorker
@@ -98,6 +99,7 @@ class Running:
     # alarm conditions the station's own checks found (a row of its store changed outside
     # it): they hold for the rest of the process, whatever the runner's state
     notices: dict[str, Condition] = field(default_factory=dict)
+    startup: StartUp = field(default_factory=StartUp)  # devices not heard since the start
 
     @property
     def runner(self) -> Runner:

@@ -12,13 +12,16 @@ import functools
 from dataclasses import dataclass
 from pathlib import Path
 
+from app.station.alarm_grouping import StartUp, rationalise
+from app.station.alarms import AlarmBook, conditions
 from app.station.player import Planners, play
 from app.station.scenario import Scenario, load_scenario
 from planner.model.station import Station
 from planner.planning.operation_planner import OperationPlanner
 from planner.planning.transition_planner import TransitionPlanner
 from planner.reading import load_station
-from planner.runner import Event, RunnerState
+from planner.runner import Event, Runner, RunnerState
+from planner.words import Wording
 from tests.support.paths import REPOSITORY
 
 MODEL = REPOSITORY / "models" / "demo_station.yaml"
@@ -30,6 +33,10 @@ class Played:
     scenario: Scenario
     events: list[Event]
     states: list[RunnerState] | None  # after each tick, when asked for
+    # the root alarms the play raised, in the order they were first raised (a key raised
+    # again counts once: a robot arriving late seven times is one fault), as the live
+    # station's alarm book would (`app.station.alarm_grouping`, start-up included)
+    alarms: list[str]
 
 
 @functools.cache
@@ -64,5 +71,28 @@ def _play(name: str, states: bool) -> Played:
     path = scenario_path(name)
     scenario = load_scenario(path.read_text(), str(path), station)
     seen: list[RunnerState] = []
-    events = list(play(station, scenario, planners, watch=seen.append if states else None))
-    return Played(scenario, events, seen if states else None)
+    alarms = RootAlarms(Runner(station, planners.transition, planners.operation, scenario.config))
+
+    def watch(state: RunnerState) -> None:
+        alarms(state)
+        if states:
+            seen.append(state)
+
+    events = list(play(station, scenario, planners, watch=watch))
+    return Played(scenario, events, seen if states else None, alarms.raised)
+
+
+class RootAlarms:
+    """The alarm book of a play, tick by tick (0.1 s each, the player's clock)."""
+
+    def __init__(self, runner: Runner) -> None:
+        self.runner, self.words = runner, Wording(runner.station)  # once: it reads the model
+        self.book, self.startup, self.ticks = AlarmBook(), StartUp(), 0
+        self.raised: list[str] = []
+
+    def __call__(self, state: RunnerState) -> None:
+        now = round(self.ticks * 0.1, 6)
+        self.ticks += 1
+        found = conditions(self.runner, state, self.words)
+        found = rationalise(found, self.book.active(), self.startup.quiet(state, now))
+        self.raised += [c.key for c in self.book.update(found, now) if c.before is None]

@@ -36,6 +36,11 @@ class AlarmOut(BaseModel):
     note: str
     shelved_by: str | None
     shelved_until: datetime | None
+    consequences: list[str] = Field(
+        default_factory=list,
+        description="what follows from this alarm's cause, in words: grouped under it, not "
+        "raised as alarms of their own (an operation in error because a robot is silent)",
+    )
 
 
 class AlarmChangeOut(BaseModel):
@@ -82,6 +87,7 @@ def alarm_out(alarm: Alarm) -> AlarmOut:
         note=alarm.note,
         shelved_by=alarm.shelved_by,
         shelved_until=_when(alarm.shelved_until),
+        consequences=list(alarm.consequences),
     )
 
 

@@ -59,6 +59,8 @@ class AlarmRow:
     note: str
     shelved_by: str
     shelved_until: Moment | None
+    consequences: tuple[str, ...] = ()  # what follows from its cause, listed under it
+    first_out: bool = False  # the first of the active alarms out: where a cascade began
 
 
 def relative(seconds: float) -> str:
@@ -91,6 +93,9 @@ def rows(alarms: Iterable[Alarm], now: float) -> list[AlarmRow]:
     def maybe(at: float | None) -> Moment | None:
         return None if at is None else moment(at, now)
 
+    alarms = list(alarms)
+    shown = [a for a in alarms if a.active and a.state is not AlarmState.SHELVED]
+    first = min(shown, key=lambda a: (a.raised_at, a.priority.rank, a.key)) if shown else None
     return [
         AlarmRow(
             key=a.key,
@@ -107,6 +112,8 @@ def rows(alarms: Iterable[Alarm], now: float) -> list[AlarmRow]:
             note=a.note,
             shelved_by=a.shelved_by or "",
             shelved_until=maybe(a.shelved_until),
+            consequences=a.consequences,
+            first_out=first is not None and a.key == first.key and len(shown) > 1,
         )
         for a in alarms
         if a.state is not AlarmState.NORMAL

@@ -29,6 +29,7 @@ from planner.planning.operation_planner import OperationPlanner
 from planner.planning.transition_planner import TransitionPlanner
 from planner.reading import load_station
 from planner.runner import Runner, RunnerState
+from planner.words import Wording
 from tests.support.paths import REPOSITORY
 
 ROOT = REPOSITORY
@@ -454,11 +455,12 @@ def play_with_alarms(
     scenario = replace(scenario, faults=scenario.faults + faults)
     runner = Runner(station, planners.transition, planners.operation, scenario.config)
     book, changes, ticks = AlarmBook(), [], [0]
+    words = Wording(station)  # once: a wording is built from the whole model
 
     def watch(state: RunnerState) -> None:
         now = round(ticks[0] * 0.1, 6)  # play's clock: 0.1 s a tick
         ticks[0] += 1
-        new = book.update(conditions(runner, state), now)
+        new = book.update(conditions(runner, state, words), now)
         changes.extend(new)
         if acknowledge:
             changes.extend(

@@ -88,6 +88,8 @@ def test_a_fault_scenario_ends_as_a_good_station_would(
         activity = (EventKind.PLAN, EventKind.OPERATION, EventKind.INTENTION)
         settled = max(e.time for e in events if e.kind in activity)
         assert last.time - settled > 30, settled
+    # one root alarm per fault that needs a person (app.station.alarm_grouping), in order
+    assert shared_plays.played(path.stem).alarms == expect["alarms"]
     # nothing a plan takes may enter a forbidden state: every recovery ends or holds
     forbidden = [e for e in events if e.kind is EventKind.FORBIDDEN]
     assert len(forbidden) <= 3, [e.time for e in forbidden]

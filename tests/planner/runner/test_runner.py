@@ -105,6 +105,8 @@ def test_table_1_experiment_recovers_as_in_the_paper(
     assert as_the_paper(paper, [label(e) for e in ours]), [str(e) for e in ours]
     assert ours[0].detail["status"] == "found" or len(paper) > 1
     assert operator_work(events) == list(scenario.expect["operator"])
+    # one root alarm per fault that needs a person (app.station.alarm_grouping), in order
+    assert plays.played(name, states=True).alarms == scenario.expect["alarms"]
 
 
 @pytest.mark.parametrize(
