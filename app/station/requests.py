@@ -82,7 +82,9 @@ class Act:
 class ConfirmCard:
     """The operator tapped Done on command card `card`: the tap goes to the devices (the
     watch is a device, seed 001), and the runner sees its effect in this round's reading.
-    Answered True when the watch took it."""
+    Answered True when the watch took it; a tap on a card confirmed already (by another
+    device, in this round or the one before the reading shows it) is a StationError, so that
+    both devices of a same-round race are told, and only the winner's tap is recorded."""
 
     user: str
     card: str
@@ -97,12 +99,13 @@ class ConfirmCard:
                 f"card '{self.card}' is no longer shown (now: {now_shown or 'none'})"
             )
         person, watch = shown[0]
-        done = running.devices.perform(watch.confirm)
+        if not running.devices.perform(watch.confirm):
+            raise StationError(f"card '{self.card}' was confirmed already, on another device")
         detail = {"card": str(self.card)}
         round_.record(
             AuditEntry(EventKind.OPERATOR, PersonAct.CARD_DONE, self.user, person.name, detail)
         )
-        return settled(done)
+        return settled(True)
 
 
 @dataclass(frozen=True)
