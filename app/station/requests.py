@@ -82,9 +82,10 @@ class Act:
 class ConfirmCard:
     """The operator tapped Done on command card `card`: the tap goes to the devices (the
     watch is a device, seed 001), and the runner sees its effect in this round's reading.
-    Answered True when the watch took it; a tap on a card confirmed already (by another
-    device, in this round or the one before the reading shows it) is a StationError, so that
-    both devices of a same-round race are told, and only the winner's tap is recorded."""
+    Answered True when the watch took it, False when it did not: the card was confirmed
+    already, by another device's tap in this round or before the reading showed it.  Either
+    is answered once the round has committed, when the view no longer shows a card that was
+    taken, and only a tap the watch took is recorded."""
 
     user: str
     card: str
@@ -99,13 +100,13 @@ class ConfirmCard:
                 f"card '{self.card}' is no longer shown (now: {now_shown or 'none'})"
             )
         person, watch = shown[0]
-        if not running.devices.perform(watch.confirm):
-            raise StationError(f"card '{self.card}' was confirmed already, on another device")
-        detail = {"card": str(self.card)}
-        round_.record(
-            AuditEntry(EventKind.OPERATOR, PersonAct.CARD_DONE, self.user, person.name, detail)
-        )
-        return settled(True)
+        done = running.devices.perform(watch.confirm)
+        if done:
+            detail = {"card": str(self.card)}
+            round_.record(
+                AuditEntry(EventKind.OPERATOR, PersonAct.CARD_DONE, self.user, person.name, detail)
+            )
+        return settled(done)
 
 
 @dataclass(frozen=True)
