@@ -95,7 +95,7 @@
     const was = el.dataset.state;
     el.dataset.state = state;
     el.querySelector(".conn__text").textContent = CONN_TEXT[state];
-    const banner = document.getElementById("offline");
+    const banner = signedOut ? null : document.getElementById("offline");
     if (state === "down") {
       const since = new Date();
       document.body.dataset.offline = "true";
@@ -142,11 +142,23 @@
     if (data && Number.isInteger(data.tasks)) setTaskCount(data.tasks);
   }
 
-  // the session ended (signed out elsewhere, a new role): sign in again, back to this page
+  // the session ended (signed out elsewhere, a new role): sign in again, back to this page;
+  // a page with typed text not sent yet (the model editor) stays, and says so
+  let signedOut = false;
   function onSignedOut(event) {
     const to = typeof event.data === "string" && event.data.startsWith("/") ? event.data : "/login";
     const here = window.location.pathname + window.location.search;
-    window.location.assign(`${to}?next=${encodeURIComponent(here)}`);
+    const typed = [...document.querySelectorAll("textarea, input[type=text], input:not([type])")]
+      .some((el) => el.value !== el.defaultValue);
+    if (!typed) {
+      window.location.assign(`${to}?next=${encodeURIComponent(here)}`);
+      return;
+    }
+    const banner = document.getElementById("offline");
+    if (!banner || signedOut) return;
+    signedOut = true;
+    banner.textContent = "You were signed out: copy what you typed, then sign in again.";
+    banner.hidden = false;
   }
 
   // what was sent while the connection was down is fetched again, not waited for

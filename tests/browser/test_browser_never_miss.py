@@ -19,7 +19,14 @@ import pytest
 
 from app.pages.cards import CardKind, task_cards
 from tests.browser.test_browser_operator import sign_in_first_time
-from tests.browser.test_browser_watch import Device, finished, sign_in_again, tap, work
+from tests.browser.test_browser_watch import (
+    Device,
+    finished,
+    screenshot,
+    sign_in_again,
+    tap,
+    work,
+)
 from tests.support.stations import REJECT_BUDGET, RunningStation, start_station
 
 # the vibration patterns of static/js/hmi.js (BUZZ), each told apart from a new card's
@@ -115,6 +122,7 @@ def test_the_offline_state_is_unmistakable_and_ends_when_the_connection_is_back(
     )
     assert normal != "dashed" and greyed[0] == "dashed", (normal, greyed)
     assert "repeating-linear-gradient" in greyed[1] and "line-through" in greyed[2], greyed
+    screenshot(watch.page, "watch-offline.png")
     for device in (watch, phone):
         before = len(vibrations(device))
         device.context.set_offline(False)
@@ -164,6 +172,7 @@ def test_tap_to_turn_on_alerts_vibrates_asks_and_says_how_when_blocked(
                 assert denied.is_visible() and "site settings" in denied.inner_text()
                 continue
             assert button.is_visible() and not denied.is_visible()
+            screenshot(page, "watch-alerts-prompt.png")
             box = button.bounding_box()
             assert box is not None and box["height"] >= 44
             button.focus()  # by keyboard
