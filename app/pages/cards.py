@@ -39,6 +39,7 @@ class TaskCard:
     of: int = 0
     rejectable: bool = False  # a recovery instruction: the person may say they cannot do it
     abnormal: bool = False  # the station is in a forbidden state (ISA-101: coloured)
+    overdue: bool = False  # the station has reminded the person (RunnerConfig.reminder)
 
     @property
     def label(self) -> str:
@@ -151,7 +152,11 @@ def _command_cards(view: StationView) -> list[TaskCard]:
         waited = _waited_for_a_person(view)
         if waited:
             why += f" The station has been waiting for you for {waited}."
-        cards.append(TaskCard(CardKind.COMMAND, f"card-{card}", title, why, card=str(card)))
+        cards.append(
+            TaskCard(
+                CardKind.COMMAND, f"card-{card}", title, why, card=str(card), overdue=bool(waited)
+            )
+        )
     return cards
 
 

@@ -82,7 +82,10 @@ class Act:
 class ConfirmCard:
     """The operator tapped Done on command card `card`: the tap goes to the devices (the
     watch is a device, seed 001), and the runner sees its effect in this round's reading.
-    Answered True when the watch took it."""
+    Answered True when the watch took it, False when it did not: the card was confirmed
+    already, by another device's tap in this round or before the reading showed it.  Either
+    is answered once the round has committed, when the view no longer shows a card that was
+    taken, and only a tap the watch took is recorded."""
 
     user: str
     card: str
@@ -98,10 +101,11 @@ class ConfirmCard:
             )
         person, watch = shown[0]
         done = running.devices.perform(watch.confirm)
-        detail = {"card": str(self.card)}
-        round_.record(
-            AuditEntry(EventKind.OPERATOR, PersonAct.CARD_DONE, self.user, person.name, detail)
-        )
+        if done:
+            detail = {"card": str(self.card)}
+            round_.record(
+                AuditEntry(EventKind.OPERATOR, PersonAct.CARD_DONE, self.user, person.name, detail)
+            )
         return settled(done)
 
 

@@ -10,6 +10,7 @@ from fastapi import FastAPI, HTTPException, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import HTMLResponse, JSONResponse, RedirectResponse, Response
 from fastapi.staticfiles import StaticFiles
+from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.middleware.sessions import SessionMiddleware
 
 from app.station.live import StationError
@@ -27,6 +28,8 @@ from app.web.deps import (
     PasswordChangeRequired,
     current_caller,
     is_api,
+    server,
+    task_count,
     templates,
 )
 from app.web.headers import SecurityHeaders
@@ -119,6 +122,7 @@ def create_app(srv: Server, secret: str) -> FastAPI:
     app.add_exception_handler(LoginRequired, _login_required)
     app.add_exception_handler(PasswordChangeRequired, _password_change)
     app.add_exception_handler(HTTPException, _http_error)  # type: ignore[arg-type]
+    app.add_exception_handler(StarletteHTTPException, _no_route)  # type: ignore[arg-type]
     app.add_exception_handler(RequestValidationError, _invalid)  # type: ignore[arg-type]
     app.add_exception_handler(StationError, _station_error)  # type: ignore[arg-type]
     return app
@@ -146,11 +150,14 @@ def error_response(request: Request, status: int, message: str) -> Response:
                 headers={"HX-Retarget": "#flash", "HX-Reswap": "innerHTML"},
             )
         return JSONResponse({"detail": message}, status_code=status)
-    context = values_for(request, None, "error", error=message, status=status)
+    # the message as the page's own (`problem`), not also as base.html's flash (`error`):
+    # said once
+    context = values_for(request, None, "error", error="", problem=message, status=status)
     try:
         context["user"] = current_caller(request)
     except Exception:  # a broken session must not hide the error itself
         context["user"] = None
+    context["task_count"] = task_count(server(request).live.view, context["user"])
     response: Response = templates(request).TemplateResponse(
         request, "error.html", context, status_code=status
     )
@@ -161,6 +168,15 @@ async def _http_error(request: Request, exc: HTTPException) -> Response:
     audited = isinstance(exc, AuditedRefusal)
     back = await after_refusal(request, exc.status_code, str(exc.detail), audited)
     return back or error_response(request, exc.status_code, str(exc.detail))
+
+
+async def _no_route(request: Request, exc: StarletteHTTPException) -> Response:
+    """Starlette's own answers (no route for the path, a method the route does not take, a
+    static file that is not there): a page in the site's frame for a person's browser, the
+    JSON they always were for the API and the static files."""
+    if exc.status_code != 404 or is_api(request) or request.url.path.startswith("/static/"):
+        return JSONResponse({"detail": exc.detail}, exc.status_code, headers=exc.headers)
+    return error_response(request, 404, f"There is no page at {request.url.path}.")
 
 
 async def _invalid(request: Request, exc: RequestValidationError) -> Response:

@@ -21,6 +21,7 @@ from fastapi import Depends, HTTPException, Request
 from fastapi.templating import Jinja2Templates
 from starlette.concurrency import run_in_threadpool
 
+from app.pages.cards import task_cards
 from app.people import sessions as user_sessions
 from app.people.auth import Permission, allowed, new_csrf_token, same_token
 from app.people.sessions import SessionKind
@@ -318,6 +319,15 @@ def alarm_badge(view: StationView) -> tuple[int, str]:
     return len(waiting), str(min(waiting, key=lambda a: a.priority.rank).priority)
 
 
+def task_count(view: StationView, caller: Caller | None) -> int | None:
+    """The task cards waiting, for the Tasks tab and the title of every page (None for a
+    caller who sees no tasks: nobody signed in, an auditor).  The page, the task card's
+    fragment and the SSE `tasks` and `badge` events all count from the same view."""
+    if caller is None or not allowed(caller.role, Permission.TASKS):
+        return None
+    return len(task_cards(view))
+
+
 def page_context(
     request: Request, caller: Caller | None, page: str, **extra: Any
 ) -> dict[str, Any]:
@@ -332,6 +342,7 @@ def page_context(
         "station_name": view.model.words.station(),  # words for people, not its model name
         "alarm_count": alarm_count,
         "alarm_priority": alarm_priority,
+        "task_count": task_count(view, caller),
         "simulated": view.simulated,
         "on_emulators": srv.live.on_emulators,
         "page": page,

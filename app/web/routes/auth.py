@@ -16,8 +16,8 @@ from fastapi.responses import RedirectResponse, Response
 from sqlalchemy.orm import Session
 
 from app.people import sessions as user_sessions
+from app.people.auth import MIN_PASSWORD, password_problem
 from app.people.auth import hash_password as new_hash
-from app.people.auth import password_problem
 from app.people.sessions import SessionKind
 from app.store import audit
 from app.store.audit import AuditEntry, AuditKind
@@ -36,7 +36,14 @@ def _login_page(
     request: Request, error: str = "", status_code: int = 200, **extra: Any
 ) -> Response:
     return render(
-        request, "login.html", None, "login", status_code=status_code, error=error, **extra
+        request,
+        "login.html",
+        None,
+        "login",
+        status_code=status_code,
+        error=error,
+        min_password=MIN_PASSWORD,
+        **extra,
     )
 
 

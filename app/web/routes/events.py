@@ -1,15 +1,18 @@
 """Server-sent events: the pages' live channel (htmx SSE extension).
 
 Each change of the runner's view is announced as an event named after what changed
-(`station`, `alarm`) whose data is the view's version; pages re-fetch the fragments that
-listen for it.  A comment every 15 s keeps proxies from closing an idle stream.  Every
-connection starts with the view's version and the alarm badge (`badge`, the data of
-`alarm`), so that a page that was offline shows the present at once (static/js/hmi.js
-re-fetches its live parts too).
+(`station`, `alarm`, `tasks`) whose data is the view's version; pages re-fetch the fragments
+that listen for it.  The `alarm` event carries the alarm badge instead (JSON: count,
+priority) and, like the `tasks` event, the task cards waiting (`tasks`) for a caller who sees
+tasks: the Tasks tab and the title of every page follow them (static/js/hmi.js).  A comment
+every 15 s keeps proxies from closing an idle stream.  Every connection starts with the
+view's version and the alarm badge (`badge`, the data of `alarm`), so that a page that was
+offline shows the present at once (static/js/hmi.js re-fetches its live parts too).
 
 A stream lives no longer than its session: every `SESSION_CHECK` seconds it looks the
 caller up again, and a session signed out, revoked (a role change, a disabled user, a reset
-password) or expired ends the stream with `signed-out`, as a signed-out page's would.
+password) or expired ends the stream with `signed-out`, as a signed-out page's would; the
+page then goes to the sign-in page (static/js/hmi.js), and opens again under the new role.
 """
 
 from __future__ import annotations
@@ -24,11 +27,13 @@ from fastapi.responses import StreamingResponse
 
 from app.station.live import LiveStation
 from app.web.deps import (
+    Caller,
     LiveDep,
     OptionalCaller,
     PasswordChangeRequired,
     alarm_badge,
     current_caller,
+    task_count,
 )
 
 router = APIRouter()
@@ -36,6 +41,7 @@ KEEPALIVE = 15.0
 SESSION_CHECK = 5.0  # seconds between looking the stream's caller up again
 SIGNED_OUT = "event: signed-out\ndata: /login\n\n"
 ALARMS = "alarm"  # the area app.station.live announces when an alarm changed
+TASKS = "tasks"  # the task page's area (app.serve), announced when the cards change
 
 
 @router.get("/events", include_in_schema=False)
@@ -48,7 +54,7 @@ async def events(request: Request, caller: OptionalCaller, live: LiveDep) -> Str
         try:
             yield f"retry: 1000\nevent: station\ndata: {live.view.serial}\n\n"
             # the badge only (static/js/hmi.js); "alarm" would re-fetch every alarm list
-            yield f"event: badge\ndata: {_data(live, ALARMS)}\n\n"
+            yield f"event: badge\ndata: {_data(live, ALARMS, caller)}\n\n"
             sent = checked = time.monotonic()
             while not await request.is_disconnected():
                 try:
@@ -62,7 +68,7 @@ async def events(request: Request, caller: OptionalCaller, live: LiveDep) -> Str
                         yield SIGNED_OUT
                         return
                 if kind is not None:
-                    yield f"event: {kind}\ndata: {_data(live, kind)}\n\n"
+                    yield f"event: {kind}\ndata: {_data(live, kind, caller)}\n\n"
                     sent = now
                 elif now - sent >= KEEPALIVE:
                     yield ": keep-alive\n\n"
@@ -82,9 +88,17 @@ def _signed_in(request: Request) -> bool:
         return False
 
 
-def _data(live: LiveStation, kind: str) -> str:
-    """The alarm event carries the badge's count and highest priority; others the version."""
+def _data(live: LiveStation, kind: str, caller: Caller) -> str:
+    """The alarm event carries the badge's count and highest priority, and the task cards
+    waiting (for a caller who sees tasks); the tasks event the latter; others the version."""
+    view = live.view
+    tasks = task_count(view, caller)
+    if kind == TASKS and tasks is not None:
+        return json.dumps({"tasks": tasks})
     if kind != ALARMS:
-        return str(live.view.serial)
-    count, priority = alarm_badge(live.view)
-    return json.dumps({"count": count, "priority": priority})
+        return str(view.serial)
+    count, priority = alarm_badge(view)
+    found: dict[str, object] = {"count": count, "priority": priority}
+    if tasks is not None:
+        found["tasks"] = tasks
+    return json.dumps(found)

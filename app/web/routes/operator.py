@@ -95,8 +95,13 @@ async def card_done(
     live: LiveDep,
     card: Annotated[str, Form(max_length=CARD_CHARS)],
 ) -> Response:
-    done = answer(live.confirm_card(caller.name, card))
-    return await tap(request, caller, live, done, "Already done on another device.")
+
+    async def done() -> None:
+        # False: another device's tap was taken first, in this very round too
+        if not await answer(live.confirm_card(caller.name, card)):
+            raise StationError(f"card '{card}' was confirmed already, on another device")
+
+    return await tap(request, caller, live, done(), "Already done on another device.")
 
 
 @router.post("/tasks/maintenance")
