@@ -6,10 +6,11 @@ from __future__ import annotations
 import logging
 from html import escape
 
-from fastapi import FastAPI, HTTPException, Request
+from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import HTMLResponse, JSONResponse, RedirectResponse, Response
 from fastapi.staticfiles import StaticFiles
+from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.middleware.sessions import SessionMiddleware
 
 from app.station.live import StationError
@@ -118,7 +119,9 @@ def create_app(srv: Server, secret: str) -> FastAPI:
 
     app.add_exception_handler(LoginRequired, _login_required)
     app.add_exception_handler(PasswordChangeRequired, _password_change)
-    app.add_exception_handler(HTTPException, _http_error)  # type: ignore[arg-type]
+    # Starlette's own (an unknown address, a wrong method) too: a person gets the error
+    # page (its <title> and lang), not raw JSON; the API keeps its JSON
+    app.add_exception_handler(StarletteHTTPException, _http_error)  # type: ignore[arg-type]
     app.add_exception_handler(RequestValidationError, _invalid)  # type: ignore[arg-type]
     app.add_exception_handler(StationError, _station_error)  # type: ignore[arg-type]
     return app
@@ -157,10 +160,13 @@ def error_response(request: Request, status: int, message: str) -> Response:
     return response
 
 
-async def _http_error(request: Request, exc: HTTPException) -> Response:
+async def _http_error(request: Request, exc: StarletteHTTPException) -> Response:
     audited = isinstance(exc, AuditedRefusal)
-    back = await after_refusal(request, exc.status_code, str(exc.detail), audited)
-    return back or error_response(request, exc.status_code, str(exc.detail))
+    detail = str(exc.detail)
+    if type(exc) is StarletteHTTPException and exc.status_code == 404 and not is_api(request):
+        detail = "There is no page at this address."  # no route: Starlette's "Not Found"
+    back = await after_refusal(request, exc.status_code, detail, audited)
+    return back or error_response(request, exc.status_code, detail)
 
 
 async def _invalid(request: Request, exc: RequestValidationError) -> Response:
