@@ -9,7 +9,9 @@
     url: "/openapi.json",
     dom_id: "#swagger-ui",
     layout: "BaseLayout",
-    deepLinking: true,
+    // no deep links: with them each operation's path is a link inside the button that opens
+    // it (a control in a control, which keyboards and screen readers cannot tell apart)
+    deepLinking: false,
     showExtensions: true,
     showCommonExtensions: true,
     validatorUrl: null, // no badge fetched from swagger.io: the page loads only its own files

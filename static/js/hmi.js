@@ -119,7 +119,8 @@
     el.classList.toggle("alarm-count--active", count > 0);
     if (count > 0 && priority) el.dataset.priority = String(priority).toLowerCase();
     else delete el.dataset.priority;
-    el.setAttribute("aria-label", `${count} active alarm${count === 1 ? "" : "s"}`);
+    // the visible words first in the name (WCAG 2.5.3, axe-core's label-content-name-mismatch)
+    el.setAttribute("aria-label", `Alarms: ${count} active`);
   }
 
   function parsed(event) {

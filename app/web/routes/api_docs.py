@@ -4,7 +4,8 @@
 FastAPI's own page loads an unpinned Swagger UI from a CDN and starts it with an inline
 script; this one loads the pinned copy vendored under static/vendor/ (its version, licence
 and sha256 in static/vendor/README.md) and starts it with static/js/api-docs.js, so its policy
-(app.web.headers.DOCS_POLICY) allows only the station's own files.
+(app.web.headers.DOCS_POLICY) allows only the station's own files.  static/css/api-docs.css
+darkens Swagger UI's light colours to a readable contrast.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ PAGE = f"""<!doctype html>
 <title>Sequence Planner station: API</title>
 <link rel="icon" href="/favicon.ico">
 <link rel="stylesheet" href="/static/vendor/swagger-ui-{SWAGGER_UI}.css">
+<link rel="stylesheet" href="/static/css/api-docs.css">
 </head>
 <body>
 <div id="swagger-ui"></div>
