@@ -111,6 +111,7 @@ class Wording:
         self._operations = {o.name: _first(o.display, o.description) for o in station.operations}
         self._intentions = {i.name: _first(i.display, i.description) for i in station.intentions}
         self._abilities = {a.qualified: _first(a.display, a.description) for a in station.abilities}
+        self._safety = {t.name: clean(t.safety) for t in model.transitions if t.safety}
         starts = {a.qualified: a for a in station.abilities}
         self._transitions: dict[str, str] = {}
         for t in model.transitions:
@@ -208,6 +209,10 @@ class Wording:
             return words
         owner = self._owner_of(name)
         return humanised(name[len(owner) + 1 :] if owner else name)
+
+    def safety(self, name: str) -> str:
+        """A maintenance step's safety note as the model writes it ("" when it has none)."""
+        return self._safety.get(name, "")
 
     def owner(self, name: str) -> str:
         """The words of the resource a transition or variable belongs to; "" if station-wide."""

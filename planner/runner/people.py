@@ -13,17 +13,20 @@ from planner.runner import restart
 from planner.runner.actions import (
     Action,
     Approve,
+    ApprovePlan,
     CancelIntention,
     EnterRestart,
     LeaveRestart,
     MaintenanceDone,
     ReenableEffect,
     Reject,
+    RejectPlan,
     Reply,
     ResetOperation,
     SetEstimated,
     StartIntention,
 )
+from planner.runner.forbidden import needs_approval
 from planner.runner.maintenance import pending_maintenance
 from planner.runner.tick import Tick
 from planner.runner.vocabulary import EventKind, IntentionState, PersonAct, ReplanReason
@@ -35,6 +38,8 @@ def act(tick: Tick, action: Action) -> Reply:
             return start_or_cancel(tick, action)
         case Approve() | Reject():
             return approve_or_reject(tick, action)
+        case ApprovePlan() | RejectPlan():
+            return decide_plan(tick, action)
         case MaintenanceDone():
             return maintenance_done(tick, action)
         case EnterRestart():
@@ -90,6 +95,31 @@ def approve_or_reject(tick: Tick, action: Approve | Reject) -> Reply:
     tick.emit(
         EventKind.OPERATOR, PersonAct.APPROVE, user=action.user, step=step, transition=transition
     )
+    return Reply.accept(action)
+
+
+def decide_plan(tick: Tick, action: ApprovePlan | RejectPlan) -> Reply:
+    """One decision on every machine step of the recovery plan not yet approved, as the
+    person was shown them; the event names each step (index and transition) for the audit."""
+    state = tick.state
+    plan = state.recovery
+    if plan is None:
+        return tick.refuse(action, "recovery plan", "there is no recovery plan to decide on")
+    steps = needs_approval(tick.index, plan)
+    shown = tuple(plan.blocks[k].transition for k in steps)
+    if not steps or not plan.asked & set(steps):
+        return tick.refuse(action, "recovery plan", "the recovery plan asks for no approval now")
+    if tuple(action.steps) != shown:
+        why = "the recovery plan changed since it was shown; look at it again"
+        return tick.refuse(action, "recovery plan", why)
+    act = PersonAct.APPROVE_PLAN if isinstance(action, ApprovePlan) else PersonAct.REJECT_PLAN
+    tick.emit(EventKind.OPERATOR, act, user=action.user, steps=steps, transitions=list(shown))
+    if isinstance(action, RejectPlan):
+        state.recovery = None  # plan again, without any of its machine steps
+        state.relaxed = frozenset()
+        state.rejected.update(shown)
+    else:
+        plan.approved.update(steps)
     return Reply.accept(action)
 
 
