@@ -623,3 +623,25 @@ def test_the_product_intention_is_marked_true_or_false_and_a_bad_mark_located() 
     assert problems(old, new) == [
         f"{at(old, new, '3')}: the product of intention 'assemble' is true or false, not '3'"
     ]
+
+
+def test_words_that_misled_people_read_plainly() -> None:
+    """Issue 29: the Table 1 labels in plain words (the label stays a technical detail),
+    and a device named by an acronym keeps it upper case."""
+    from planner.words import recovery_words
+
+    assert recovery_words("TP w/RTO") == (
+        "the machines' steps planned again without the machine that stopped answering"
+    )
+    assert (
+        recovery_words("OP w/DO") == "the order of the work planned again without the work in error"
+    )
+    assert (
+        recovery_words("TP w/MT")
+        == "the machines' steps planned again with a person's maintenance steps"
+    )
+    assert recovery_words("TP w/ETO w/MT").count(" and ") == 1
+    assert recovery_words("XY w/Q") == "XY w/Q"  # unknown: as it is
+    words = Wording(load_station(MODEL, "mini.yaml"))
+    assert sentence(words.resource("plc")) == "PLC"
+    assert words.resource("r1") == "robot 1"
