@@ -31,7 +31,7 @@ from planner.model.expressions import (
     SameValue,
     Value,
 )
-from planner.model.flat import Variable
+from planner.model.flat import TransitionKind, Variable
 from planner.model.station import Station
 from planner.reading.display import humanised
 from planner.runner.vocabulary import PlanLevel, RecoveryFlag, ReplanReason
@@ -113,6 +113,9 @@ class Wording:
         self._intentions = {i.name: _first(i.display, i.description) for i in station.intentions}
         self._abilities = {a.qualified: _first(a.display, a.description) for a in station.abilities}
         self._safety = {t.name: clean(t.safety) for t in model.transitions if t.safety}
+        self._maintenance = frozenset(
+            t.name for t in model.transitions if t.kind is TransitionKind.MAINTENANCE
+        )
         starts = {a.qualified: a for a in station.abilities}
         self._transitions: dict[str, str] = {}
         for t in model.transitions:
@@ -214,6 +217,10 @@ class Wording:
             return words
         owner = self._owner_of(name)
         return humanised(name[len(owner) + 1 :] if owner else name)
+
+    def is_maintenance(self, name: str) -> bool:
+        """Whether transition `name` is a person's maintenance step."""
+        return name in self._maintenance
 
     def safety(self, name: str) -> str:
         """A maintenance step's safety note as the model writes it ("" when it has none)."""

@@ -50,6 +50,7 @@ class TaskCard:
     steps: tuple[str, ...] = ()
     plan: tuple[str, ...] = ()
     plan_steps: tuple[int, ...] = ()
+    numbers: tuple[int, ...] = ()  # the steps' numbers among the plan's machine steps
     asked: tuple[int, ...] = ()
     waiting: str = ""  # instruction: shown ahead; the station first does this (no Done yet)
 
@@ -287,6 +288,7 @@ def _approvals(view: StationView) -> list[TaskCard]:
             steps=tuple(s.line for s in steps),
             plan=tuple(s.transition for s in steps),
             plan_steps=tuple(s.step for s in steps),
+            numbers=tuple(s.number for s in steps),
             asked=tuple(sorted(plan.asked - plan.approved)),
         )
     ]

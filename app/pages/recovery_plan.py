@@ -20,6 +20,7 @@ from planner.model.expressions import Value
 from planner.model.flat import VariableKind
 from planner.model.semantics import State
 from planner.runner import TransitionPlan
+from planner.runner.forbidden import numbered
 from planner.words import Wording, sentence
 
 _NUMBERED = re.compile(r"^(.*\S)\s+(\d+)$")  # "bolt pair 2": a kind and its number
@@ -30,6 +31,7 @@ class PlanStep:
     """One machine step of the plan, in words."""
 
     step: int  # the plan's block
+    number: int  # as people see it numbered: among the plan's machine steps, from 1
     transition: str
     words: str  # "Robot 1: move down onto bolt pair 2"
     result: str  # "bolt pair 2 tightened", or where its resource is; "" if neither is known
@@ -79,7 +81,8 @@ def plan_steps(view: StationView, plan: TransitionPlan, steps: list[int]) -> lis
         said = "; ".join(f"{words.variable(v)} {words.value_name(v, x)}" for v, x in changes)
         written = plan.blocks[k].writes
         result = said or _where(view, name, before.get(k, state), written)
-        out.append(PlanStep(k, name, sentence(words.step(name)), result, changes))
+        number = numbered(index, plan, k)[0]
+        out.append(PlanStep(k, number, name, sentence(words.step(name)), result, changes))
     return out
 
 

@@ -108,11 +108,20 @@ def needs_approval(index: StationIndex, plan: TransitionPlan) -> list[int]:
     return [
         k
         for k, block in enumerate(plan.blocks)
-        if k not in plan.approved
-        and k not in plan.taken
-        and index.kind_of(block.transition) is not TransitionKind.MAINTENANCE
-        and block.transition not in index.person_transitions
+        if k not in plan.approved and k not in plan.taken and not _persons(index, block.transition)
     ]
+
+
+def numbered(index: StationIndex, plan: TransitionPlan, k: int) -> tuple[int, int]:
+    """Step k as people see it numbered (1-based): a machine step among the plan's machine
+    steps, a person's step among the person's steps ("step 2 of 6")."""
+    person = _persons(index, plan.blocks[k].transition)
+    same = [j for j, b in enumerate(plan.blocks) if _persons(index, b.transition) == person]
+    return same.index(k) + 1, len(same)
+
+
+def _persons(index: StationIndex, name: str) -> bool:
+    return index.kind_of(name) is TransitionKind.MAINTENANCE or name in index.person_transitions
 
 
 def holding(tick: Tick) -> bool | None:

@@ -26,7 +26,7 @@ from planner.runner.actions import (
     SetEstimated,
     StartIntention,
 )
-from planner.runner.forbidden import needs_approval
+from planner.runner.forbidden import needs_approval, numbered
 from planner.runner.maintenance import pending_maintenance
 from planner.runner.tick import Tick
 from planner.runner.vocabulary import EventKind, IntentionState, PersonAct, ReplanReason
@@ -83,9 +83,16 @@ def approve_or_reject(tick: Tick, action: Approve | Reject) -> Reply:
     if step not in plan.asked:  # a person answers what was shown, not what may come
         return tick.refuse(action, f"step {step}", "that step has not been asked for yet")
     transition = plan.blocks[step].transition
+    number, of = numbered(tick.index, plan, step)  # as the screen numbers it, for the audit
     if isinstance(action, Reject):
         tick.emit(
-            EventKind.OPERATOR, PersonAct.REJECT, user=action.user, step=step, transition=transition
+            EventKind.OPERATOR,
+            PersonAct.REJECT,
+            user=action.user,
+            step=step,
+            transition=transition,
+            number=number,
+            of=of,
         )
         state.recovery = None  # plan again, without the rejected step
         state.relaxed = frozenset()
@@ -93,7 +100,13 @@ def approve_or_reject(tick: Tick, action: Approve | Reject) -> Reply:
         return Reply.accept(action)
     plan.approved.add(step)
     tick.emit(
-        EventKind.OPERATOR, PersonAct.APPROVE, user=action.user, step=step, transition=transition
+        EventKind.OPERATOR,
+        PersonAct.APPROVE,
+        user=action.user,
+        step=step,
+        transition=transition,
+        number=number,
+        of=of,
     )
     return Reply.accept(action)
 
@@ -113,7 +126,17 @@ def decide_plan(tick: Tick, action: ApprovePlan | RejectPlan) -> Reply:
         why = "the recovery plan changed since it was shown; look at it again"
         return tick.refuse(action, "recovery plan", why)
     act = PersonAct.APPROVE_PLAN if isinstance(action, ApprovePlan) else PersonAct.REJECT_PLAN
-    tick.emit(EventKind.OPERATOR, act, user=action.user, steps=steps, transitions=list(shown))
+    numbers = [numbered(tick.index, plan, k)[0] for k in steps]
+    of = numbered(tick.index, plan, steps[0])[1]
+    tick.emit(
+        EventKind.OPERATOR,
+        act,
+        user=action.user,
+        steps=steps,
+        transitions=list(shown),
+        numbers=numbers,
+        of=of,
+    )
     if isinstance(action, RejectPlan):
         state.recovery = None  # plan again, without any of its machine steps
         state.relaxed = frozenset()
