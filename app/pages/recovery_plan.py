@@ -34,7 +34,7 @@ class PlanStep:
     number: int  # as people see it numbered: among the plan's machine steps, from 1
     transition: str
     words: str  # "Robot 1: move down onto bolt pair 2"
-    result: str  # "bolt pair 2 tightened", or where its resource is; "" if neither is known
+    result: str  # "bolt pair 2 is tightened", or where its resource is; "" if neither is known
     changes: tuple[tuple[str, str], ...]  # the decisions it makes: (variable, value)
 
     @property
@@ -78,7 +78,7 @@ def plan_steps(view: StationView, plan: TransitionPlan, steps: list[int]) -> lis
     for k in steps:
         name = plan.blocks[k].transition
         changes = tuple(made.get(k, {}).items())
-        said = "; ".join(f"{words.variable(v)} {words.value_name(v, x)}" for v, x in changes)
+        said = "; ".join(words.value(v, x) for v, x in changes)
         written = plan.blocks[k].writes
         result = said or _where(view, name, before.get(k, state), written)
         number = numbered(index, plan, k)[0]
@@ -139,7 +139,7 @@ def grouped(words: Wording, changes: list[tuple[str, str]]) -> str:
         if numbered:
             groups.setdefault((numbered.group(1), said), []).append(int(numbered.group(2)))
         else:
-            loose.append(f"{name} {said}")
+            loose.append(words.value(variable, value))
     parts = [f"{_numbers(kind, sorted(set(ns)))} {said}" for (kind, said), ns in groups.items()]
     parts += loose
     return ", ".join(parts[:-1]) + " and " + parts[-1] if len(parts) > 1 else "".join(parts)

@@ -45,7 +45,7 @@ def test_a_recovery_plan_is_one_card_naming_each_steps_object(
     assert card.title.endswith(f"{len(card.steps)} machine steps")
     # each run of the nutrunner says which bolt pair it tightens; each differs
     runs = [line for line in card.steps if line.startswith("The nutrunner")]
-    tightened = [re.search(r"bolt pair (\d) tightened", line) for line in runs]
+    tightened = [re.search(r"bolt pair (\d) is tightened", line) for line in runs]
     assert runs and all(tightened)
     numbers = [m.group(1) for m in tightened if m]
     assert len(set(numbers)) == len(numbers)
