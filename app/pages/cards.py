@@ -279,7 +279,7 @@ def _approvals(view: StationView) -> list[TaskCard]:
             headline(view.model.words, steps),
             "Nothing moves before you approve. Approve once for every step, or reject the "
             "plan: the station looks for another way without these steps.",
-            detail=f"{n} machine step{'s' if n != 1 else ''}, listed below",
+            detail=f"The {n} machine step{'s' if n != 1 else ''}",
             transition=plan.blocks[first].transition,
             step=first,
             of=n,

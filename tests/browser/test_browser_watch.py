@@ -375,59 +375,6 @@ def test_every_card_of_e1_to_e9_and_the_reject_path_on_three_screens(
     print(f"E1-E9 and the reject path: {time.monotonic() - started:.1f} s, {lost} taps lost")
 
 
-def test_after_i_cannot_do_this_the_recovery_is_one_decision_on_the_watch(
-    station: RunningStation, devices: dict[str, Device]
-) -> None:
-    """E2's reject path: "I cannot do this" on taking the filters off; the station's way out
-    is one card -- what is wrong above the buttons, the plan in work terms, its steps on
-    demand -- approved once with "Approve all", and no step asks again."""
-    watch = devices["watch"]
-    intentions = play(station, "e2_oil_filter_early")
-    deadline = time.monotonic() + 120
-    rejected, approvals = False, []
-    while not finished(station, intentions):
-        assert time.monotonic() < deadline, approvals
-        cards = task_cards(station.live.view)
-        if not cards:
-            watch.page.wait_for_timeout(50)
-            continue
-        key = cards[0].key
-        try:
-            watch.shows(key, 5)
-        except PlaywrightTimeout:
-            continue
-        card = watch.page.evaluate(CARD, key)
-        if card is None or card["waiting"]:
-            continue
-        if card["kind"] == "approval":
-            approvals.append(card)
-            page = watch.page
-            cause = page.locator("#tasks [data-testid=cause]").bounding_box()
-            button = page.locator("#tasks button", has_text="Approve all").bounding_box()
-            assert cause and button and cause["y"] + cause["height"] <= button["y"], card
-            assert re.search(r"\d+ machine steps", card["text"]), card
-            steps = page.locator("#tasks [data-testid=plan-steps]")
-            steps.locator("summary").click()  # the steps on demand
-            listed = steps.locator("li").all_inner_texts()
-            assert len(listed) >= 2 and any("bolt pair" in line for line in listed), listed
-            assert not INTERNAL.search(" ".join(listed)), listed
-            screenshot(page, "watch-recovery-plan.png")
-            steps.locator("summary").click()
-            assert_usable(watch)
-            button_name = "Approve all"
-        elif card["abnormal"] and not rejected:
-            button_name, rejected = "I cannot do this", True
-        else:
-            button_name = "Done"
-        tap(watch, key, button_name)
-    assert rejected
-    assert len(approvals) == 1, [a["text"] for a in approvals]  # one decision, not one per step
-    decided = [e for e in station.live.view.events if e.subject == "approve plan"]
-    assert decided and decided[-1].detail["user"] == "operator"
-    assert not [e for e in station.live.view.events if e.subject == "approve"]
-    assert not watch.errors, watch.errors
-
-
 def test_e6_cause_card_on_the_watch(station: RunningStation, devices: dict[str, Device]) -> None:
     """Stops at E6's maintenance card for its screenshot, then finishes the run."""
     watch = devices["watch"]
