@@ -16,3 +16,17 @@ def test_the_recovery_cards_words_name_no_model_identifier() -> None:
     shown = [card.label, card.cause, card.title, card.why, card.detail, *card.steps]
     assert all(shown), shown
     assert [t for t in shown if offences(t, forbidden)] == []
+
+
+def test_a_simulation_card_leads_with_plain_words_and_keeps_the_table_1_label_aside() -> None:
+    from app.station.scenario import load_scenario
+    from app.web.routes.simulation import experiments_context
+    from planner.words import Wording
+
+    station, _ = plays.demo()
+    path = plays.scenario_path("e7_r2_disconnects_holding_tool")
+    scenario = load_scenario(path.read_text(), str(path), station)
+    [row] = experiments_context({"e7": ("E7", scenario)}, Wording(station))["experiments"]
+    assert row["recovery_labels"] == ["TP w/RTO", "OP w/DO", "TP w/MT"]
+    assert row["recovery"][0].startswith("the machines' steps planned again without")
+    assert not [r for r in row["recovery"] if "w/" in r]
