@@ -395,7 +395,14 @@ def test_e6_cause_card_on_the_watch(station: RunningStation, devices: dict[str, 
         else:
             watch.page.wait_for_timeout(50)
     watch.shows(cards[0].key)
-    assert "Robot 2 stopped answering" in watch.page.locator("#tasks .card-why").inner_text()
+    cause = watch.page.locator("#tasks [data-testid=cause]")
+    assert "Robot 2 stopped answering" in cause.inner_text()
+    safety = watch.page.locator("#tasks [data-testid=safety]")
+    assert "emergency stop" in safety.inner_text()  # the model's safety note, before Done
+    done = watch.page.locator("#tasks .card-actions button", has_text="Done").bounding_box()
+    above = [cause.bounding_box(), safety.bounding_box()]
+    assert done and all(b and b["y"] + b["height"] <= done["y"] for b in above), (above, done)
+    assert_usable(watch)  # Done still on the 320 x 320 screen
     screenshot(watch.page, "watch-e6-cause.png")
     work(station, devices, intentions)
 
