@@ -31,10 +31,10 @@ from planner.model.expressions import (
     SameValue,
     Value,
 )
-from planner.model.flat import Variable
+from planner.model.flat import TransitionKind, Variable
 from planner.model.station import Station
 from planner.reading.display import humanised
-from planner.runner.vocabulary import ReplanReason
+from planner.runner.vocabulary import PlanLevel, RecoveryFlag, ReplanReason
 
 _GROUP = re.compile(r"\s*\(([^()]*)\)")
 _REFERENCE = re.compile(
@@ -80,6 +80,7 @@ def sentence(text: str) -> str:
 
 _NAME = re.compile(r"(?<![\w.])[A-Za-z_]\w*(?:\.[A-Za-z_]\w*)*(?!\w)")
 _BOOL_WORDS = {True: "yes", False: "no"}
+_ACRONYM = re.compile(r"[b-df-hj-np-tv-xzB-DF-HJ-NP-TV-XZ]{2,5}")  # no vowel: read letter by letter
 
 
 def _first(*texts: str) -> str:
@@ -111,6 +112,10 @@ class Wording:
         self._operations = {o.name: _first(o.display, o.description) for o in station.operations}
         self._intentions = {i.name: _first(i.display, i.description) for i in station.intentions}
         self._abilities = {a.qualified: _first(a.display, a.description) for a in station.abilities}
+        self._safety = {t.name: clean(t.safety) for t in model.transitions if t.safety}
+        self._maintenance = frozenset(
+            t.name for t in model.transitions if t.kind is TransitionKind.MAINTENANCE
+        )
         starts = {a.qualified: a for a in station.abilities}
         self._transitions: dict[str, str] = {}
         for t in model.transitions:
@@ -145,6 +150,10 @@ class Wording:
         return self._station
 
     def resource(self, name: str) -> str:
+        """A resource's words; a device that is no resource (the PLC) by its name, an
+        acronym kept upper case ("plc" is "PLC", never "Plc")."""
+        if name not in self._resources and _ACRONYM.fullmatch(name):
+            return name.upper()
         return self._lookup(self._resources, name)
 
     def variable(self, name: str) -> str:
@@ -208,6 +217,14 @@ class Wording:
             return words
         owner = self._owner_of(name)
         return humanised(name[len(owner) + 1 :] if owner else name)
+
+    def is_maintenance(self, name: str) -> bool:
+        """Whether transition `name` is a person's maintenance step."""
+        return name in self._maintenance
+
+    def safety(self, name: str) -> str:
+        """A maintenance step's safety note as the model writes it ("" when it has none)."""
+        return self._safety.get(name, "")
 
     def owner(self, name: str) -> str:
         """The words of the resource a transition or variable belongs to; "" if station-wide."""
@@ -303,3 +320,29 @@ def replan_words(reason: str) -> str:
         return REASON_WORDS[ReplanReason(reason)]
     except ValueError:
         return "planned again"
+
+
+_LEVEL_WORDS: Mapping[PlanLevel, str] = {
+    PlanLevel.OPERATIONS: "the order of the work planned again",
+    PlanLevel.TRANSITIONS: "the machines' steps planned again",
+}
+_FLAG_WORDS: Mapping[RecoveryFlag, str] = {
+    RecoveryFlag.EFFECT_TIMED_OUT: "without what did not happen in time",
+    RecoveryFlag.RESOURCE_TIMED_OUT: "without the machine that stopped answering",
+    RecoveryFlag.MAINTENANCE: "with a person's maintenance steps",
+    RecoveryFlag.DISABLED_OPERATIONS: "without the work in error",
+}
+
+
+def recovery_words(label: str) -> str:
+    """A planning action's Table 1 label ("TP w/RTO", "OP w/DO", "TP w/MT") in plain words
+    ("the machines' steps planned again without the machine that stopped answering"); the
+    label itself is a technical detail for engineers, shown beside it.  A label this code
+    cannot read comes back as it is."""
+    level, *flags = label.replace(" w/", " ").split() or [""]
+    try:
+        said = [_LEVEL_WORDS[PlanLevel(level)]]
+        said += [_FLAG_WORDS[RecoveryFlag(flag)] for flag in flags]
+    except ValueError:
+        return label
+    return " ".join(said[:1]) + ("" if len(said) == 1 else " " + " and ".join(said[1:]))

@@ -1,5 +1,9 @@
 """An operator's "done today": the engines the station completed since midnight and the
-person's own tasks, read from the audit log (the runs as `app.history.run_history` finds them)."""
+person's own tasks, read from the audit log (the runs as `app.history.run_history` finds them).
+
+An engine is a finished run of an intention the model marks as the product (`product: true`):
+a run that only tightened the bolts is no engine.  A model that marks none keeps the older
+count: every finished run is one."""
 
 from __future__ import annotations
 
@@ -24,6 +28,8 @@ _TASKS = {
     PersonAct.MAINTENANCE_DONE: "Done",
     PersonAct.APPROVE: "Approved",
     PersonAct.REJECT: "Could not do / rejected",
+    PersonAct.APPROVE_PLAN: "Approved",
+    PersonAct.REJECT_PLAN: "Rejected",
 }
 
 
@@ -70,8 +76,11 @@ def done_today(
     cards = [watch.card for _, watch in model.watches]
     tasks = tuple(DoneItem(t, _task_words(words, cards, subject, d)) for t, subject, d in rows)
     engines = []
+    products = {i.name for i in model.intentions if i.product}
     for run in run_history(store, station).runs:
         end = run.wall(run.end)
+        if products and not products & set(run.intentions):
+            continue  # not the product: a part of the work run on its own
         if run.outcome is Outcome.FINISHED and end is not None and end >= since:
             what = sentence(words.names(run.intentions))
             engines.append(DoneItem(end, f"{what}: complete"))
@@ -82,6 +91,10 @@ def done_today(
 def _task_words(words: Wording, cards: list[str], subject: str, detail: dict[str, object]) -> str:
     """ "Done: the card for placing bolt pair 1", "Approved: robot 1: move down onto ..."."""
     transition, card = str(detail.get("transition", "")), str(detail.get("card", ""))
+    planned = detail.get("transitions")
+    if isinstance(planned, list) and planned:  # a recovery plan decided at once
+        count = f"{len(planned)} step{'s' if len(planned) != 1 else ''}"
+        return f"{_TASKS[PersonAct(subject)]}: the recovery plan ({count})"
     if transition:  # the person's own step by what it does, an approved one with its doer
         what = (
             words.transition(transition)

@@ -209,9 +209,9 @@ class _Builder:
             return
         attempt = self.running.get(resource)
         what = self.words.transition(h.subject)
-        self.close(resource, h.time, f"another result than planned: {what}")
-        self.mark(resource, h.time, MarkKind.ERROR, f"another result than planned: {what}")
-        cause = f"{self.words.resource(resource)}: another result than planned"
+        self.close(resource, h.time, f"not as planned: {what}")
+        self.mark(resource, h.time, MarkKind.ERROR, f"not as planned: {what}")
+        cause = f"{self.words.resource(resource)}: did not go as planned"
         start = attempt.start if attempt is not None else h.time
         self.wastes.append(_Waste(Cause.UNEXPECTED, cause, start, until_next_step=True))
 

@@ -25,7 +25,7 @@ class Cause(StrEnum):
     PERSON = "person"  # waiting for a person's maintenance step or approval
     OUTAGE = "outage"  # a resource that stopped answering
     TIMEOUT = "timeout"  # an effect that did not happen in time
-    UNEXPECTED = "unexpected"  # another result than planned
+    UNEXPECTED = "unexpected"  # a different result than planned (the scan found nothing)
     FORBIDDEN = "forbidden"  # a forbidden state, recovering
     RESTART = "restart"  # restart mode
     MAINTENANCE = "maintenance"  # in error while the station follows a maintenance plan

@@ -8,10 +8,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import StrEnum
 
+from app.pages.recovery_plan import headline, plan_steps, resource_place
 from app.station.view import StationView
 from planner.model.flat import TransitionKind
 from planner.model.watch import IDLE
 from planner.runner import Event, EventKind, IntentionState, OperationState, TransitionPlan
+from planner.runner.forbidden import needs_approval
+from planner.runner.maintenance import next_maintenance
 from planner.words import Wording
 from planner.words import sentence as sentence
 
@@ -40,6 +43,17 @@ class TaskCard:
     rejectable: bool = False  # a recovery instruction: the person may say they cannot do it
     abnormal: bool = False  # the station is in a forbidden state (ISA-101: coloured)
     overdue: bool = False  # the station has reminded the person (RunnerConfig.reminder)
+    cause: str = ""  # what is wrong and what it stops, read first (above the buttons)
+    safety: str = ""  # the model's safety note of a maintenance step, read before Done
+    # approval: the recovery plan's machine steps in words, listed on demand; `plan` their
+    # transitions (what one decision approves, sent back as shown) and `plan_steps` their
+    # steps in the plan, of which `asked` may be approved one by one (an engineer's choice)
+    steps: tuple[str, ...] = ()
+    plan: tuple[str, ...] = ()
+    plan_steps: tuple[int, ...] = ()
+    numbers: tuple[int, ...] = ()  # the steps' numbers among the plan's machine steps
+    asked: tuple[int, ...] = ()
+    waiting: str = ""  # instruction: shown ahead; the station first does this (no Done yet)
 
     @property
     def label(self) -> str:
@@ -49,7 +63,9 @@ class TaskCard:
         if self.abnormal:
             return "Abnormal \u2014 your step"
         if self.kind is CardKind.INSTRUCTION:
-            return f"Maintenance \u00b7 step {self.step} of {self.of}" if self.of else "Maintenance"
+            ahead = "Next \u00b7 " if self.waiting else ""
+            number = f" \u00b7 step {self.step} of {self.of}" if self.of else ""
+            return f"{ahead}Maintenance{number}"
         return "Your task"
 
     @property
@@ -174,22 +190,25 @@ def _waited_for_a_person(view: StationView) -> str:
 
 
 def _instructions(view: StationView) -> list[TaskCard]:
+    """The maintenance plan's person's steps asked now (or the next one, shown ahead while
+    the robots' steps before it run), then a recovery's person's steps."""
     s = view.state
     cards = []
-    model = view.model.station.model
-    plans: list[tuple[TransitionPlan | None, str]] = [(s.maintenance, s.maintenance_for)]
-    for plan, operation in plans:
-        if plan is None:
-            continue
+    plan = s.maintenance
+    if plan is not None:
         # numbered among a person's steps of the plan (the robots' steps between are not
         # the person's to count): 1 of 2, 2 of 2 -- never "1 of 7" then "3 of 7"
         people = [
             k
             for k, b in enumerate(plan.blocks)
-            if model.transition(b.transition).kind is TransitionKind.MAINTENANCE
+            if view.runner.index.kind_of(b.transition) is TransitionKind.MAINTENANCE
         ]
-        failed = _failure(view, operation)
-        for k in sorted(plan.asked - plan.taken):
+        cause, stopped = _failure(view, s.maintenance_for)
+        shown: list[tuple[int, str]] = [(k, "") for k in sorted(plan.asked - plan.taken)]
+        ahead = next_maintenance(view.runner.index, plan)
+        if not shown and ahead is not None:
+            shown = [(ahead[0], _first_the_station(view, plan, ahead[1]))]
+        for k, waiting in shown:
             name = plan.blocks[k].transition
             number = people.index(k) + 1 if k in people else 0
             cards.append(
@@ -197,67 +216,94 @@ def _instructions(view: StationView) -> list[TaskCard]:
                     CardKind.INSTRUCTION,
                     f"maintenance-{name}",
                     sentence(describe(view, name)),
-                    _joined(failed, _safe(view, name)),
+                    _joined(stopped, _safe(view, name)),
                     detail=f"step {number} of {len(people)}" if number else "",
                     transition=name,
                     step=number,
                     of=len(people) if number else 0,
+                    cause=cause,
+                    safety=view.model.words.safety(name),
+                    waiting=waiting,
                 )
             )
-    plan = s.recovery
-    if plan is not None:
-        violated = _violated(view)
-        for k in sorted(plan.approved - plan.taken):
-            name = plan.blocks[k].transition
-            if view.model.station.model.transition(name).kind is TransitionKind.MAINTENANCE:
-                cards.append(
-                    TaskCard(
-                        CardKind.INSTRUCTION,
-                        f"recovery-{name}",
-                        sentence(describe(view, name)),
-                        _joined(
-                            f"Not allowed now: {violated}. Your step puts it right; if you "
-                            "cannot do it, say so and the station looks for another way.",
-                            _safe(view, name),
-                        ),
-                        transition=name,
-                        step=k,
-                        rejectable=True,
-                        abnormal=True,
-                    )
+    return cards + _recovery_instructions(view)
+
+
+def _first_the_station(view: StationView, plan: TransitionPlan, blocks: list[int]) -> str:
+    """What the station does before a person's step shown ahead ("Wait: the station first
+    does this: robot 1: move above the engine; the nutrunner: stop.")."""
+    words = view.model.words
+    steps = "; ".join(words.step(plan.blocks[j].transition) for j in blocks)
+    return f"Wait: the station first does this: {steps}." if steps else "Wait a moment."
+
+
+def _recovery_instructions(view: StationView) -> list[TaskCard]:
+    plan = view.state.recovery
+    if plan is None:
+        return []
+    cards = []
+    violated = _violated(view)
+    for k in sorted(plan.approved - plan.taken):
+        name = plan.blocks[k].transition
+        if view.runner.index.kind_of(name) is TransitionKind.MAINTENANCE:
+            cards.append(
+                TaskCard(
+                    CardKind.INSTRUCTION,
+                    f"recovery-{name}",
+                    sentence(describe(view, name)),
+                    _joined(
+                        "Your step puts it right; if you cannot do it, say so and the "
+                        "station looks for another way.",
+                        _safe(view, name),
+                    ),
+                    transition=name,
+                    step=k,
+                    rejectable=True,
+                    abnormal=True,
+                    cause=f"Not allowed now: {violated}.",
+                    safety=view.model.words.safety(name),
                 )
+            )
     return cards
 
 
 def _approvals(view: StationView) -> list[TaskCard]:
+    """The recovery plan as one decision: what is wrong, what the station will do (its
+    machine steps, each named by what it acts on), approved or refused once."""
     plan = view.state.recovery
-    if plan is None:
+    if plan is None or not plan.asked - plan.approved:
         return []
-    violated = _violated(view)
-    cards = []
-    for k in sorted(plan.asked - plan.approved):
-        name = plan.blocks[k].transition
-        cards.append(
-            TaskCard(
-                CardKind.APPROVAL,
-                f"approval-{k}",
-                sentence(view.model.words.step(name)),
-                f"Not allowed now: {violated}. The station will do this step to put it "
-                "right, once you approve.",
-                detail=f"recovery step {k + 1} of {len(plan.blocks)}",
-                transition=name,
-                step=k,
-                abnormal=True,
-            )
+    index = view.runner.index
+    steps = plan_steps(view, plan, needs_approval(index, plan))
+    first = min(plan.asked - plan.approved)
+    n = len(steps)
+    return [
+        TaskCard(
+            CardKind.APPROVAL,
+            f"approval-{first}",
+            headline(view.model.words, steps),
+            "Nothing moves before you approve. Approve once for every step, or reject the "
+            "plan: the station looks for another way without these steps.",
+            detail=f"The {n} machine step{'s' if n != 1 else ''}",
+            transition=plan.blocks[first].transition,
+            step=first,
+            of=n,
+            abnormal=True,
+            cause=f"Not allowed now: {_violated(view)}.",
+            steps=tuple(s.line for s in steps),
+            plan=tuple(s.transition for s in steps),
+            plan_steps=tuple(s.step for s in steps),
+            numbers=tuple(s.number for s in steps),
+            asked=tuple(sorted(plan.asked - plan.approved)),
         )
-    return cards
+    ]
 
 
 def _violated(view: StationView) -> str:
-    """The specifications the state breaks, in words."""
+    """The specifications the state breaks, in words (inside a sentence: not capitalised)."""
     words = view.model.words
     names = sorted(view.state.relaxed)
-    return words.sentence(" and ".join(words.specification(n) for n in names) or "the rules")
+    return " and ".join(words.specification(n) for n in names) or "the rules"
 
 
 def _safe(view: StationView, name: str) -> str:
@@ -281,17 +327,18 @@ def describe(view: StationView, name: str) -> str:
     return view.model.words.transition(name)
 
 
-def _failure(view: StationView, operation: str) -> str:
-    """The cause first ("Robot 2 stopped answering."), then what it stopped."""
+def _failure(view: StationView, operation: str) -> tuple[str, str]:
+    """The cause ("Robot 2 stopped answering above the engine.") and what it stopped, said
+    without a pronoun that could point at the cause ("The station cannot go on with: ...")."""
     words = view.model.words
     cause = first_cause(view)
     if not operation:
-        return cause or "Something went wrong that needs your hands."
-    stopped = f"It stopped: {words.operation(operation)}."
+        return cause or "Something went wrong that needs your hands.", ""
+    stopped = f"The station cannot go on with: {words.operation(operation)}."
     if cause:
-        return f"{cause} {stopped}"
+        return cause, stopped
     reason = view.state.operation_causes.get(operation, "")
-    return f"{sentence(words.text(reason))}. {stopped}" if reason else stopped
+    return (f"{sentence(words.text(reason))}." if reason else ""), stopped
 
 
 _CAUSES = (EventKind.UNAVAILABLE, EventKind.TIMEOUT, EventKind.UNEXPECTED)
@@ -309,16 +356,21 @@ def first_cause(view: StationView) -> str:
         if e.kind is EventKind.INTENTION and e.detail.get("before") == IntentionState.INITIAL:
             start = k
             break
+    values = view.state.values
     for e in events[start:]:
         if e.kind in _CAUSES:
-            return cause_words(view.model.words, e)
+            where = ""
+            if e.kind is EventKind.UNAVAILABLE:  # where it stopped: its last known place
+                where = resource_place(view, e.subject, values.__getitem__)
+            return cause_words(view.model.words, e, where)
     return ""
 
 
-def cause_words(words: Wording, event: Event) -> str:
+def cause_words(words: Wording, event: Event, where: str = "") -> str:
     """One cause event as a sentence for a person."""
     if event.kind is EventKind.UNAVAILABLE:
-        return sentence(f"{words.resource(event.subject)} stopped answering.")
+        at = f" {where}" if where else ""
+        return sentence(f"{words.resource(event.subject)} stopped answering{at}.")
     if event.kind is EventKind.TIMEOUT:
         return sentence(f"{words.step(event.subject)}: did not happen in time.")
     if event.detail.get("why") == "a different effect":

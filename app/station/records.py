@@ -111,12 +111,24 @@ def event_entry(runner: Runner, event: Event) -> AuditEntry:
 
 def resource_of(runner: Runner, event: Event) -> str:
     """The resource an event concerns, for the auditor's filter ("" if none or several): the
-    resource itself, the owner of the transition or variable it is about."""
+    resource itself, the owner of the transition or variable it is about (an approval's, a
+    maintenance step's)."""
     station, subject = runner.station, event.subject
     if subject in runner.index.resource_transitions:
         return subject
     variable = str(event.detail.get("variable", ""))
-    return station.owner_of(subject) or station.owner_of(variable)
+    # a person's decision or step: the resource of the step it is about; a whole recovery
+    # plan decided at once: its steps' resources, when they are one
+    transition = str(event.detail.get("transition", ""))
+    planned = event.detail.get("transitions")
+    owners = {station.owner_of(str(n)) for n in planned} if isinstance(planned, list) else set()
+    plan_owner = owners.pop() if len(owners) == 1 else ""
+    return (
+        station.owner_of(subject)
+        or station.owner_of(variable)
+        or station.owner_of(transition)
+        or plan_owner
+    )
 
 
 def alarm_entry(change: AlarmChange) -> AuditEntry:

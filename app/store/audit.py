@@ -37,7 +37,19 @@ ATTEMPTS = 5  # commits lost to another process's writer before giving up
 
 GENESIS = "0" * 64
 PAGE_SIZE = 100
-CSV_COLUMNS = ("id", "time", "station", "user", "kind", "subject", "resource", "detail", "hash")
+# the stored columns (the hash covers them), then the record in the screen's words
+CSV_COLUMNS = (
+    "id",
+    "time",
+    "station",
+    "user",
+    "kind",
+    "subject",
+    "resource",
+    "detail",
+    "hash",
+    "in words",
+)
 
 
 class AuditKind(StrEnum):
@@ -227,8 +239,14 @@ def distinct_values(session: Session, column: str) -> list[str]:
     return [v for v in session.scalars(select(attribute).distinct().order_by(attribute)) if v]
 
 
-def csv_lines(session: Session, where: AuditFilter, batch: int = 1000) -> Iterator[str]:
-    """The filtered log as CSV, oldest first, streamed in batches."""
+def csv_lines(
+    session: Session,
+    where: AuditFilter,
+    batch: int = 1000,
+    said: Callable[[AuditRecord], str] = lambda record: "",
+) -> Iterator[str]:
+    """The filtered log as CSV, oldest first, streamed in batches; `said` is a record in
+    people's words (the last column, outside the hash)."""
     out = io.StringIO()
     writer = csv.writer(out)
     writer.writerow(CSV_COLUMNS)
@@ -243,7 +261,8 @@ def csv_lines(session: Session, where: AuditFilter, batch: int = 1000) -> Iterat
             return
         for r in rows:
             text = (r.station, r.user, r.kind, r.subject, r.resource, r.detail)
-            writer.writerow([r.id, _iso(r.time), *map(spreadsheet_safe, text), r.hash])
+            words = spreadsheet_safe(said(r))
+            writer.writerow([r.id, _iso(r.time), *map(spreadsheet_safe, text), r.hash, words])
         last_id = rows[-1].id
 
 

@@ -88,7 +88,8 @@ def maintenance_step(live: LiveStation, transition: str) -> str:
     model = live.model.station.model
     names = [t.name for t in model.transitions if t.kind is TransitionKind.MAINTENANCE]
     known(transition, names, "maintenance transition")
-    asked = {c.transition for c in task_cards(live.view) if c.kind is CardKind.INSTRUCTION}
+    cards = task_cards(live.view)
+    asked = {c.transition for c in cards if c.kind is CardKind.INSTRUCTION and not c.waiting}
     if transition not in asked:
         raise StationError(f"{transition}: not a maintenance step asked for now")
     return transition

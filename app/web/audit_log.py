@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import re
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from datetime import UTC, datetime
 from typing import Annotated, Any
@@ -31,6 +32,9 @@ from app.web.limits import (
     TIME_CHARS,
     USER_CHARS,
 )
+from planner.runner import EventKind
+from planner.runner.vocabulary import PersonAct
+from planner.words import Wording
 
 TIME_EXAMPLE = "2025-05-01T14:30 (UTC) or 2025-05-01T16:30:00+02:00"
 # which records (`show`), as the page's switch names them; the page's default first
@@ -233,6 +237,54 @@ def filter_dependency(
     """The filter's query parameters, for /audit.csv and /api/audit (the page reads them
     itself, so that a bad filter comes back in the form)."""
     return criteria(since, until, user, kind, resource, station, text, show)
+
+
+def record_words(words: Wording, kind: str, subject: str, detail: Mapping[str, Any]) -> str:
+    """What a record says, in the words and numbering of the screen the person used:
+    "approved step 2 of 6: robot 1: move down onto bolt pair 2", "declined step 1 of 1:
+    take off the oil filters mounted too early" (the card's "I cannot do this"), "approved
+    the recovery plan at once, steps 1-6 of 6: ..."; other records: the subject in words."""
+    if kind != EventKind.OPERATOR:
+        return words.text(subject)
+    transition = str(detail.get("transition", ""))
+    if subject in (PersonAct.APPROVE, PersonAct.REJECT) and transition:
+        person = subject == PersonAct.REJECT and _persons_step(words, transition)
+        verb = "approved" if subject == PersonAct.APPROVE else "declined" if person else "rejected"
+        return f"{verb} {_step_number(detail)}: {words.step(transition)}"
+    if subject in (PersonAct.APPROVE_PLAN, PersonAct.REJECT_PLAN):
+        verb = "approved" if subject == PersonAct.APPROVE_PLAN else "rejected"
+        names = [str(n) for n in detail.get("transitions", ()) or ()]
+        numbers = [int(n) for n in detail.get("numbers", ()) or () if isinstance(n, int)]
+        shown = _numbers(numbers, detail.get("of"))
+        steps = "; ".join(words.step(n) for n in names)
+        return f"{verb} the recovery plan at once, {shown}: {steps}"
+    if subject == PersonAct.MAINTENANCE_DONE and transition:
+        return f"done: {words.step(transition)}"
+    return words.text(subject)
+
+
+def _persons_step(words: Wording, transition: str) -> bool:
+    """A person's own step (rejecting it is declining it: "I cannot do this")."""
+    return words.is_maintenance(transition)
+
+
+def _step_number(detail: Mapping[str, Any]) -> str:
+    """ "step 2 of 6" as the screen numbered it; older records: the plan's step, from 1."""
+    number, of = detail.get("number"), detail.get("of")
+    if isinstance(number, int) and isinstance(of, int):
+        return f"step {number} of {of}"
+    step = detail.get("step")
+    return f"step {step + 1}" if isinstance(step, int) else "a step"
+
+
+def _numbers(numbers: list[int], of: object) -> str:
+    if not numbers:
+        return "its steps"
+    total = f" of {of}" if isinstance(of, int) else ""
+    if numbers == list(range(numbers[0], numbers[-1] + 1)) and len(numbers) > 1:
+        return f"steps {numbers[0]}-{numbers[-1]}{total}"
+    listed = ", ".join(map(str, numbers))
+    return f"step{'s' if len(numbers) > 1 else ''} {listed}{total}"
 
 
 def detail_of(record: AuditRecord) -> dict[str, Any]:

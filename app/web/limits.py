@@ -26,6 +26,7 @@ NOTE_CHARS = 500  # a person's note or reason
 CONFIRM_CHARS = 20  # a form's confirmation flag
 CARD_CHARS = 100  # a command card's value
 MAX_STEP = 10_000  # a recovery plan's step
+MAX_PLAN_STEPS = 1_000  # the steps of a recovery plan approved at once
 KEY_CHARS = 200  # an alarm's key, as the store keeps it (AlarmRecord.key)
 MOST_KEYS = 1000  # alarms one "acknowledge all" may name
 SHELVE_MINUTES = 480  # the alarm page's shelve (the API's: app.station.alarms.SHELVE_LIMIT)

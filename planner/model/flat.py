@@ -78,6 +78,8 @@ class Transition:
     source: SourceLocation | None = field(default=None, compare=False)
     description: str = field(default="", compare=False)  # plain words, for instructions
     display: str = field(default="", compare=False)  # its name for people (planner.words)
+    # a maintenance step's safety note: what a person does first to approach safely
+    safety: str = field(default="", compare=False)
 
     @property
     def written(self) -> frozenset[str]:

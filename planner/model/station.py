@@ -100,6 +100,7 @@ class Intention:
     actions: tuple[Assign, ...] = ()
     description: str = ""
     display: str = ""  # its name for people (planner.words)
+    product: bool = False  # what the station makes: "Done today" counts its finished runs
 
 
 def effect_as_goal(action: Assign, values: Mapping[str, Value]) -> Expr:

@@ -33,7 +33,11 @@ _NOT_WORDS = {
 
 
 def read_words(
-    reader: Reader, node: yaml.Node, what: str, parameters: Collection[str] = ()
+    reader: Reader,
+    node: yaml.Node,
+    what: str,
+    parameters: Collection[str] = (),
+    limit: int = MAX_DISPLAY_CHARS,
 ) -> str | None:
     """The words of one `display` (or of one value), checked; None (an error recorded) if bad.
 
@@ -55,8 +59,8 @@ def read_words(
         reader.error(node, f"{what} must be one line")
         return None
     text = text.strip()
-    if len(text) > MAX_DISPLAY_CHARS:
-        reader.error(node, _too_long(what, text))
+    if len(text) > limit:
+        reader.error(node, _too_long(what, text, limit))
         return None
     ok = True
     for match in PLACEHOLDER.finditer(text):
@@ -82,8 +86,8 @@ def read_words(
     return text if ok else None
 
 
-def _too_long(what: str, text: str) -> str:
-    return f"{what} is {len(text)} characters; at most {MAX_DISPLAY_CHARS} fit a watch card"
+def _too_long(what: str, text: str, limit: int = MAX_DISPLAY_CHARS) -> str:
+    return f"{what} is {len(text)} characters; at most {limit} fit a watch card"
 
 
 def _unmatched(text: str, brace: str) -> int:

@@ -29,7 +29,8 @@ from planner.reading.yaml_reader import Diagnostic, ModelError, Reader, closest,
 
 FLAT_KEYS = ("variables", "transitions", "specifications")
 _VARIABLE_KEYS = ("name", "domain", "initial", "kind", "description", "display", "display_values")
-_TRANSITION_KEYS = ("name", "kind", "guard", "actions", "description", "display")
+_TRANSITION_KEYS = ("name", "kind", "guard", "actions", "description", "display", "safety")
+MAX_SAFETY_CHARS = 200  # a note read before Done on a watch: two or three short lines
 _SPECIFICATION_KEYS = ("name", "invariant", "description", "display")
 
 
@@ -194,7 +195,26 @@ def read_transition(
         return None
     if guard is None:
         guard = TRUE
-    return Transition(name, kind, guard, actions, reader.at(node), about, display)
+    safety = read_safety(reader, fields, where, kind)
+    return Transition(name, kind, guard, actions, reader.at(node), about, display, safety)
+
+
+def read_safety(
+    reader: Reader,
+    fields: Mapping[str, tuple[yaml.Node, yaml.Node]],
+    where: str,
+    kind: TransitionKind,
+) -> str:
+    """A maintenance transition's `safety` note (plain words, one line); "" if none or bad
+    (an error recorded at the key or the value)."""
+    if "safety" not in fields:
+        return ""
+    key, node = fields["safety"]
+    if kind is not TransitionKind.MAINTENANCE:
+        reader.error(key, f"safety of {where}: only a maintenance transition has a safety note")
+        return ""
+    what = f"the safety note of {where}"
+    return read_words(reader, node, what, limit=MAX_SAFETY_CHARS) or ""
 
 
 def read_actions(

@@ -31,7 +31,16 @@ _OPERATION_KEYS = (
     "actions",
     "duration",
 )
-_INTENTION_KEYS = ("name", "description", "display", "precondition", "goal", "always", "actions")
+_INTENTION_KEYS = (
+    "name",
+    "description",
+    "display",
+    "precondition",
+    "goal",
+    "always",
+    "actions",
+    "product",
+)
 
 
 def read_operations(
@@ -183,7 +192,22 @@ def _read_intention(
     if "always" in fields and always is None:
         return None
     display = read_display(reader, fields, where)
-    return Intention(name, pre, goal, always, actions, read_description(reader, fields), display)
+    product = _read_product(reader, fields, where)
+    about = read_description(reader, fields)
+    return Intention(name, pre, goal, always, actions, about, display, product)
+
+
+def _read_product(reader: Reader, fields: Fields, where: str) -> bool:
+    """`product: true` marks the intention whose finished runs are the station's products;
+    anything but true or false is an error at the value."""
+    if "product" not in fields:
+        return False
+    node = fields["product"][1]
+    if not (isinstance(node, yaml.ScalarNode) and node.tag.endswith(":bool")):
+        shown = node.value if isinstance(node, yaml.ScalarNode) else "a list or mapping"
+        reader.error(node, f"the product of {where} is true or false, not {shown!r}")
+        return False
+    return str(node.value).lower() in ("true", "yes", "on")
 
 
 def _optional_expr(

@@ -91,6 +91,7 @@ def guarded(
                 transition.source,
                 transition.description,
                 transition.display,
+                transition.safety,
             )
         out.append((transition, node))
     return out

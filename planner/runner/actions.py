@@ -44,6 +44,24 @@ class Reject(Action):
 
 
 @dataclass(frozen=True)
+class ApprovePlan(Action):
+    """Approve, in one decision, every machine step of the forbidden-state recovery plan
+    not yet approved: `steps` are their transitions in plan order, as the person was shown
+    them (a plan that changed meanwhile is refused, not approved unseen).  Steps whose turn
+    has not come are approved in advance: no approval is asked for them again."""
+
+    steps: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class RejectPlan(Action):
+    """Refuse the recovery plan shown (`steps`, as for `ApprovePlan`) in one decision: every
+    one of its machine steps is left out of the next plan, as `Reject` leaves out one."""
+
+    steps: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
 class MaintenanceDone(Action):
     """The operator has carried out maintenance transition `transition` in the world."""
 

@@ -13,6 +13,8 @@ next plan.  Recovery ends when every specification holds and the state is not ba
     machine's step asked --approve--> approved --taken--> next step
     person's step shown (an instruction) --done--> next step
     step asked --reject--> plan made again without it
+    plan shown --approve plan--> every machine step approved at once (in advance too)
+    plan shown --reject plan--> plan made again without any of its machine steps
     no plan (everything rejected) --> hold: nothing moves, said once (an `error` event)
     holding --the state changes--> plan again (quietly, if still nothing)
     holding --what a rejected step reads or writes, or what planning may use, changes-->
@@ -29,6 +31,8 @@ from planner.planning.query import PlanQuery
 from planner.runner.automatic import violates_specifications
 from planner.runner.following import follow, startable, stuck, take
 from planner.runner.queries import announce, ask, disabled, no_plan_because
+from planner.runner.state import TransitionPlan
+from planner.runner.station_index import StationIndex
 from planner.runner.tick import Tick
 from planner.runner.vocabulary import EventKind, PlanLevel, RecoveryFlag, ReplanReason
 
@@ -89,11 +93,35 @@ def recover(tick: Tick) -> None:
                 tick.emit(EventKind.INSTRUCTION, name, step=k, of=of, what=what, recovery=True)
             elif name in tick.index.person_transitions:
                 plan.approved.add(k)  # the person's own card: showing it asks them
+            elif k in plan.approved:
+                pass  # approved in advance with the whole plan (`ApprovePlan`): not asked again
             else:
                 tick.emit(EventKind.APPROVAL, name, step=k, type=kind.value, what=what)
         if k not in plan.approved or kind is TransitionKind.MAINTENANCE:
             continue  # waits for approval, or for the operator to report it done
         take(tick, plan, k, supervised=False)
+
+
+def needs_approval(index: StationIndex, plan: TransitionPlan) -> list[int]:
+    """The plan's machine steps not yet approved nor taken, in plan order: what one approval
+    of the whole plan covers (a person's steps are consented to by doing them)."""
+    return [
+        k
+        for k, block in enumerate(plan.blocks)
+        if k not in plan.approved and k not in plan.taken and not _persons(index, block.transition)
+    ]
+
+
+def numbered(index: StationIndex, plan: TransitionPlan, k: int) -> tuple[int, int]:
+    """Step k as people see it numbered (1-based): a machine step among the plan's machine
+    steps, a person's step among the person's steps ("step 2 of 6")."""
+    person = _persons(index, plan.blocks[k].transition)
+    same = [j for j, b in enumerate(plan.blocks) if _persons(index, b.transition) == person]
+    return same.index(k) + 1, len(same)
+
+
+def _persons(index: StationIndex, name: str) -> bool:
+    return index.kind_of(name) is TransitionKind.MAINTENANCE or name in index.person_transitions
 
 
 def holding(tick: Tick) -> bool | None:

@@ -11,6 +11,7 @@ be tried again, if it has retries left.
     its turn comes --> instruction shown --> the operator reports it done --> next step
     what it waits for can no longer happen --> made again from here
     every step done --> the operation goes back to initial (within its retries)
+    a person's step done, the next one's turn not come --> shown ahead (`next_maintenance`)
     no intention in error any more --> the plan is dropped
 
 With operations in parallel, an intention can go to error while other operations still
@@ -27,6 +28,7 @@ from planner.planning.partial_order import blocks
 from planner.runner.following import startable, stuck, take
 from planner.runner.queries import announce, ask, recovery_flags, transition_query
 from planner.runner.state import TransitionPlan
+from planner.runner.station_index import StationIndex
 from planner.runner.tick import Tick
 from planner.runner.vocabulary import (
     EventKind,
@@ -139,3 +141,19 @@ def pending_maintenance(tick: Tick) -> list[str]:
         for k in startable(tick, maintenance)
         if k in maintenance.asked
     ]
+
+
+def next_maintenance(index: StationIndex, plan: TransitionPlan) -> tuple[int, list[int]] | None:
+    """After a person's step of a maintenance plan, the plan's next person's step and the
+    blocks it still waits for (the robots' steps between, which take seconds): shown at
+    once, ahead of its turn, so that the person is not told "nothing for you" between two
+    steps of one plan.  None while a step is asked, or before the person did any."""
+    person = TransitionKind.MAINTENANCE
+    maintenance = [k for k, b in enumerate(plan.blocks) if index.kind_of(b.transition) is person]
+    if plan.asked - plan.taken or not any(k in plan.taken for k in maintenance):
+        return None
+    ahead = [k for k in maintenance if k not in plan.taken and k not in plan.asked]
+    if not ahead:
+        return None
+    done = plan.done
+    return ahead[0], sorted(j for j in plan.blocks[ahead[0]].after if j not in done)

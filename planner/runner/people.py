@@ -13,17 +13,20 @@ from planner.runner import restart
 from planner.runner.actions import (
     Action,
     Approve,
+    ApprovePlan,
     CancelIntention,
     EnterRestart,
     LeaveRestart,
     MaintenanceDone,
     ReenableEffect,
     Reject,
+    RejectPlan,
     Reply,
     ResetOperation,
     SetEstimated,
     StartIntention,
 )
+from planner.runner.forbidden import needs_approval, numbered
 from planner.runner.maintenance import pending_maintenance
 from planner.runner.tick import Tick
 from planner.runner.vocabulary import EventKind, IntentionState, PersonAct, ReplanReason
@@ -35,6 +38,8 @@ def act(tick: Tick, action: Action) -> Reply:
             return start_or_cancel(tick, action)
         case Approve() | Reject():
             return approve_or_reject(tick, action)
+        case ApprovePlan() | RejectPlan():
+            return decide_plan(tick, action)
         case MaintenanceDone():
             return maintenance_done(tick, action)
         case EnterRestart():
@@ -78,9 +83,16 @@ def approve_or_reject(tick: Tick, action: Approve | Reject) -> Reply:
     if step not in plan.asked:  # a person answers what was shown, not what may come
         return tick.refuse(action, f"step {step}", "that step has not been asked for yet")
     transition = plan.blocks[step].transition
+    number, of = numbered(tick.index, plan, step)  # as the screen numbers it, for the audit
     if isinstance(action, Reject):
         tick.emit(
-            EventKind.OPERATOR, PersonAct.REJECT, user=action.user, step=step, transition=transition
+            EventKind.OPERATOR,
+            PersonAct.REJECT,
+            user=action.user,
+            step=step,
+            transition=transition,
+            number=number,
+            of=of,
         )
         state.recovery = None  # plan again, without the rejected step
         state.relaxed = frozenset()
@@ -88,8 +100,49 @@ def approve_or_reject(tick: Tick, action: Approve | Reject) -> Reply:
         return Reply.accept(action)
     plan.approved.add(step)
     tick.emit(
-        EventKind.OPERATOR, PersonAct.APPROVE, user=action.user, step=step, transition=transition
+        EventKind.OPERATOR,
+        PersonAct.APPROVE,
+        user=action.user,
+        step=step,
+        transition=transition,
+        number=number,
+        of=of,
     )
+    return Reply.accept(action)
+
+
+def decide_plan(tick: Tick, action: ApprovePlan | RejectPlan) -> Reply:
+    """One decision on every machine step of the recovery plan not yet approved, as the
+    person was shown them; the event names each step (index and transition) for the audit."""
+    state = tick.state
+    plan = state.recovery
+    if plan is None:
+        return tick.refuse(action, "recovery plan", "there is no recovery plan to decide on")
+    steps = needs_approval(tick.index, plan)
+    shown = tuple(plan.blocks[k].transition for k in steps)
+    if not steps or not plan.asked & set(steps):
+        return tick.refuse(action, "recovery plan", "the recovery plan asks for no approval now")
+    if tuple(action.steps) != shown:
+        why = "the recovery plan changed since it was shown; look at it again"
+        return tick.refuse(action, "recovery plan", why)
+    act = PersonAct.APPROVE_PLAN if isinstance(action, ApprovePlan) else PersonAct.REJECT_PLAN
+    numbers = [numbered(tick.index, plan, k)[0] for k in steps]
+    of = numbered(tick.index, plan, steps[0])[1]
+    tick.emit(
+        EventKind.OPERATOR,
+        act,
+        user=action.user,
+        steps=steps,
+        transitions=list(shown),
+        numbers=numbers,
+        of=of,
+    )
+    if isinstance(action, RejectPlan):
+        state.recovery = None  # plan again, without any of its machine steps
+        state.relaxed = frozenset()
+        state.rejected.update(shown)
+    else:
+        plan.approved.update(steps)
     return Reply.accept(action)
 
 

@@ -115,6 +115,8 @@ class PersonAct(StrEnum):
     CANCEL_INTENTION = "cancel intention"
     APPROVE = "approve"  # a recovery step approved
     REJECT = "reject"  # a recovery step rejected: "I cannot do this"
+    APPROVE_PLAN = "approve plan"  # every machine step of a recovery plan approved at once
+    REJECT_PLAN = "reject plan"  # a recovery plan refused at once: its machine steps left out
     MAINTENANCE_DONE = "maintenance done"  # a maintenance step done by hand
     RESET_OPERATION = "reset operation"  # restart mode
     CARD_DONE = "card done"  # a tap on the watch's Done (the watch's effect, recorded by the app)

@@ -96,11 +96,11 @@ def test_engineer_edits_the_model_sees_the_error_located_fixes_and_activates(
     # a Start whose precondition does not hold says why, before and after the click
     bolts = page.locator("#station-overview [data-intention='tighten_bolts']")
     needs = "the ladder frame is on the engine"
-    assert bolts.locator("[data-waits-for]").inner_text() == f"Cannot start yet: needs {needs}"
+    assert bolts.locator("[data-waits-for]").inner_text() == f"Cannot start until {needs}"
     bolts.get_by_role("button", name="Start").click()
     page.locator("#flash").get_by_text(f"not yet: {needs}").wait_for()
     bolts = page.locator("#station-overview [data-intention='tighten_bolts']")
-    bolts.locator("[data-waits-for]", has_text=f"Waits for: {needs}").wait_for()
+    bolts.locator("[data-waits-for]", has_text=f"Starts once {needs}").wait_for()
     bolts.get_by_role("button", name="Cancel").click()
     served.wait(lambda: "tighten_bolts" not in served.live.view.state.auto_start, 10)
     served.live.act(_start("assemble_engine")).result(10)

@@ -200,6 +200,9 @@ def work(
         card = watch.page.evaluate(CARD, key)  # read at once: the page changes under us
         if card is None:  # another card came first meanwhile
             continue
+        if card["waiting"]:  # the next step shown ahead: no Done until the station is ready
+            watch.page.wait_for_timeout(50)
+            continue
         if not seen or seen[-1]["key"] != key:
             card.update(key=key, new=key not in untapped)
             card["vibrations"] = devices["phone"].vibrations()  # the phone did not tap
@@ -208,7 +211,7 @@ def work(
             for device in devices.values():
                 assert_usable(device)
         if card["kind"] == "approval":
-            button = "Approve"
+            button = "Approve all"
         elif reject and not rejected and card["abnormal"]:
             button, rejected = "I cannot do this", True
         else:
@@ -224,6 +227,7 @@ CARD = """key => {
   const card = now?.querySelector("section.card.waits");
   if (!card || now.dataset.key !== key) return null;
   return {kind: card.dataset.kind, abnormal: card.dataset.abnormal === "true",
+          waiting: card.dataset.waiting === "true",
           label: card.querySelector(".card-kind").innerText, text: card.innerText};
 }"""
 
@@ -391,7 +395,14 @@ def test_e6_cause_card_on_the_watch(station: RunningStation, devices: dict[str, 
         else:
             watch.page.wait_for_timeout(50)
     watch.shows(cards[0].key)
-    assert "Robot 2 stopped answering" in watch.page.locator("#tasks .card-why").inner_text()
+    cause = watch.page.locator("#tasks [data-testid=cause]")
+    assert "Robot 2 stopped answering" in cause.inner_text()
+    safety = watch.page.locator("#tasks [data-testid=safety]")
+    assert "emergency stop" in safety.inner_text()  # the model's safety note, before Done
+    done = watch.page.locator("#tasks .card-actions button", has_text="Done").bounding_box()
+    above = [cause.bounding_box(), safety.bounding_box()]
+    assert done and all(b and b["y"] + b["height"] <= done["y"] for b in above), (above, done)
+    assert_usable(watch)  # Done still on the 320 x 320 screen
     screenshot(watch.page, "watch-e6-cause.png")
     work(station, devices, intentions)
 

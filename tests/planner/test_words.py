@@ -573,3 +573,75 @@ def test_a_cause_names_what_blocks_it_and_reads_in_words() -> None:
     state.operations["press_part"] = OperationState.EXECUTING
     fail_operations(Tick(runner, state, 1.0), ["press_part"])
     assert state.operation_causes["press_part"] == "its goal cannot be reached"
+
+
+# ---- safety notes of maintenance steps ---------------------------------------------------------
+
+PUSH = 'description: "push robot 1 home by hand (E6, E7)"}'
+
+
+def test_a_maintenance_step_carries_its_safety_note_in_words() -> None:
+    note = 'safety: "press robot 1\'s emergency stop first (E6)"'
+    station = load_station(MODEL.replace(PUSH, PUSH[:-1] + ", " + note + "}"), "mini.yaml")
+    words = Wording(station)
+    assert words.safety("r1.push_home") == "press robot 1's emergency stop first"
+    assert words.safety("r1.goto.arrive") == ""
+
+
+@pytest.mark.parametrize(
+    ("bad", "message"),
+    [
+        ("3", "must be words, not a number (3); put it in quotes"),
+        ("[a, b]", "must be words, not a list or mapping"),
+        ('"' + "x" * 201 + '"', "is 201 characters; at most 200 fit a watch card"),
+    ],
+)
+def test_a_bad_safety_note_is_located_at_its_value(bad: str, message: str) -> None:
+    new = PUSH[:-1] + ", safety: " + bad + "}"
+    found = problems(PUSH, new)
+    fragment = bad
+    assert found == [
+        f"{at(PUSH, new, fragment)}: the safety note of transition 'push_home' {message}"
+    ]
+
+
+def test_a_safety_note_is_for_maintenance_steps_only() -> None:
+    old = 'display: "arrive"}'
+    (found,) = problems(old, 'display: "arrive", safety: "stand back"}')
+    location, message = found.split(": ", 1)
+    assert location == at(old, 'display: "arrive", safety: "stand back"}', "safety")
+    assert message.startswith("safety of transition 'r1.goto.arrive'")
+    assert "only a maintenance transition" in message
+
+
+def test_the_product_intention_is_marked_true_or_false_and_a_bad_mark_located() -> None:
+    old = 'display: "assemble it"'
+    station = load_station(MODEL.replace(old, old + ", product: true"), "mini.yaml")
+    assert [i.name for i in station.intentions if i.product] == ["assemble"]
+    assert not any(i.product for i in load_station(MODEL, "mini.yaml").intentions)
+    new = old + ", product: 3"
+    assert problems(old, new) == [
+        f"{at(old, new, '3')}: the product of intention 'assemble' is true or false, not '3'"
+    ]
+
+
+def test_words_that_misled_people_read_plainly() -> None:
+    """Issue 29: the Table 1 labels in plain words (the label stays a technical detail),
+    and a device named by an acronym keeps it upper case."""
+    from planner.words import recovery_words
+
+    assert recovery_words("TP w/RTO") == (
+        "the machines' steps planned again without the machine that stopped answering"
+    )
+    assert (
+        recovery_words("OP w/DO") == "the order of the work planned again without the work in error"
+    )
+    assert (
+        recovery_words("TP w/MT")
+        == "the machines' steps planned again with a person's maintenance steps"
+    )
+    assert recovery_words("TP w/ETO w/MT").count(" and ") == 1
+    assert recovery_words("XY w/Q") == "XY w/Q"  # unknown: as it is
+    words = Wording(load_station(MODEL, "mini.yaml"))
+    assert sentence(words.resource("plc")) == "PLC"
+    assert words.resource("r1") == "robot 1"

@@ -14,13 +14,15 @@ from pathlib import Path
 
 from app.station.alarm_grouping import StartUp, rationalise
 from app.station.alarms import AlarmBook, conditions
+from app.station.cycle import StationCycle
 from app.station.player import Planners, play
 from app.station.scenario import Scenario, load_scenario
+from hw.simulated import SimulatedWorld
 from planner.model.station import Station
 from planner.planning.operation_planner import OperationPlanner
 from planner.planning.transition_planner import TransitionPlanner
 from planner.reading import load_station
-from planner.runner import Event, Runner, RunnerState
+from planner.runner import Action, Event, EventKind, Reject, Runner, RunnerState
 from planner.words import Wording
 from tests.support.paths import REPOSITORY
 
@@ -96,3 +98,30 @@ class RootAlarms:
         found = conditions(self.runner, state, self.words)
         found = rationalise(found, self.book.active(), self.startup.quiet(state, now))
         self.raised += [c.key for c in self.book.update(found, now) if c.before is None]
+
+
+def declined_e2() -> tuple[StationCycle, float]:
+    """E2 with the operator's "I cannot do this" on the filter removal: the cycle when the
+    plan offered instead first asks for an approval, and the time."""
+    station, planners = demo()
+    path = scenario_path("reject_oil_filter_removal")
+    scenario = load_scenario(path.read_text(), str(path), station)
+    runner = Runner(station, planners.transition, planners.operation, scenario.config)
+    world = SimulatedWorld(
+        station, delays=scenario.delays, default_delay=scenario.default_delay, start=scenario.start
+    )
+    start = runner.initial(0.0, scenario.start)
+    cycle = StationCycle(runner, world, start, list(scenario.faults))
+    now = 0.0
+    while now < 60:
+        actions: list[Action] = []
+        for event in cycle.step(now).events:
+            if event.kind is EventKind.INSTRUCTION and event.detail.get("recovery"):
+                actions.append(Reject(user="ann", step=int(event.detail["step"])))
+            if event.kind is EventKind.APPROVAL:
+                return cycle, now
+        now = round(now + 0.1, 6)
+        if actions:
+            cycle.step(now, actions)
+            now = round(now + 0.1, 6)
+    raise AssertionError("no approval was asked")

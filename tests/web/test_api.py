@@ -148,6 +148,13 @@ def test_a_refused_action_is_a_409_with_the_runners_reason(
         "/api/approvals/0", headers=auth["operator"], json={"decision": "approve"}
     )
     assert response.status_code == 409 and "no such recovery step" in response.json()["detail"]
+    response = client.post(
+        "/api/recovery-plan",
+        headers=auth["operator"],
+        json={"decision": "approve", "steps": ["r1.goto_bp2"]},
+    )
+    assert response.status_code == 409
+    assert "there is no recovery plan to decide on" in response.json()["detail"]
     response = client.post("/api/maintenance/operator.reset_r1_tc/done", headers=auth["operator"])
     assert response.status_code == 409
     assert "not a maintenance step asked for now" in response.json()["detail"]
@@ -167,6 +174,9 @@ def test_bodies_that_do_not_fit_are_422(
     assert response.status_code == 422
     response = client.post("/api/approvals/-1", headers=operator, json={"decision": "approve"})
     assert response.status_code == 422
+    for bad in ({"decision": "approve"}, {"decision": "approve", "steps": []}, {"steps": ["a"]}):
+        response = client.post("/api/recovery-plan", headers=operator, json=bad)
+        assert response.status_code == 422, bad
     response = client.post(
         "/api/alarms/shelve", headers=operator, json={"key": "resource:r2", "minutes": 0}
     )

@@ -253,3 +253,47 @@ def test_the_page_shows_peoples_records_and_the_stations_events_one_click_away(
     assert len(list(csv.reader(io.StringIO(everything)))) == 1 + 4
     wrong = auditor.get("/audit", params={**when, "show": "robots"})
     assert wrong.status_code == 422 and "one of people, station, all" in wrong.text
+
+
+def test_people_s_decisions_are_exported_in_the_screen_s_words_and_numbering(
+    station: RunningStation, auditor: TestClient
+) -> None:
+    """Issue 29: "approved step 2 of 6", "declined" for "I cannot do this", a plan approved
+    at once with its steps; the resource of an approval or maintenance step is filled in
+    when the station records it."""
+    from app.station.records import event_entry
+    from planner.runner import Event, EventKind
+
+    srv = station.built.server
+    runner = srv.live.runner
+    approve = {"step": 3, "transition": "r1.goto_bp2", "number": 2, "of": 6}
+    decline = {"step": 0, "transition": "operator.remove_oil_filters", "number": 1, "of": 1}
+    plan = {"steps": [1, 2], "transitions": ["nr.run_nut", "r1.goto_bp2"], "numbers": [1, 2]}
+    done = {"transition": "operator.move_r2_home"}
+    said_by = [
+        ("approve", approve),
+        ("reject", decline),
+        ("approve plan", {**plan, "of": 2}),
+        ("maintenance done", done),
+    ]
+    events = [
+        Event(k + 1.0, EventKind.OPERATOR, subject, {"user": "dee", **detail})
+        for k, (subject, detail) in enumerate(said_by)
+    ]
+    entries = [event_entry(runner, e) for e in events]
+    assert [e.resource for e in entries] == ["r1", "operator", "", "operator"]
+    when = datetime(2002, 5, 6, 7, 0, tzinfo=UTC).timestamp()
+    audit.write(srv.store, srv.live.name, entries, when)
+    year = {"since": "2002-01-01T00:00", "until": "2002-12-31T23:59:59"}
+    rows = list(csv.reader(io.StringIO(auditor.get("/audit.csv", params=year).text)))
+    assert rows[0][-1] == "in words"
+    said = [r[-1] for r in rows[1:]]
+    assert said == [
+        "approved step 2 of 6: robot 1: move down onto bolt pair 2",
+        "declined step 1 of 1: the operator: take off the oil filters mounted too early",
+        "approved the recovery plan at once, steps 1-2 of 2: the nutrunner: start tightening; "
+        "robot 1: move down onto bolt pair 2",
+        "done: the operator: move robot 2 home by hand",
+    ]
+    page = auditor.get("/audit", params={**year, "show": "people"}).text
+    assert "declined step 1 of 1" in page and "approved step 2 of 6" in page

@@ -374,12 +374,12 @@ def test_start_says_which_part_of_the_precondition_does_not_hold(station: Runnin
     client, token = signed_in(station)
     row = 'id="intention-tighten_bolts"'
     before = client.get("/station").text.split(row)[1][:1500]
-    assert "Cannot start yet: needs the ladder frame is on the engine" in before
+    assert "Cannot start until the ladder frame is on the engine" in before
     assert "the engine is in the station" not in before  # that part holds: not listed
     assert "It waits until the ladder frame is on the engine." in before  # the confirm
     after = post(client, token, "/station/intentions/start", name="tighten_bolts").text
     assert "starts once its precondition holds; not yet: the ladder frame is on the engine" in after
-    assert "Waits for: the ladder frame is on the engine" in after.split(row)[1][:1500]
+    assert "Starts once the ladder frame is on the engine" in after.split(row)[1][:1500]
     assert (
         post(client, token, "/station/intentions/cancel", name="tighten_bolts").status_code == 200
     )

@@ -91,6 +91,10 @@ def test_a_tap_that_came_too_late_gets_the_fresh_card_and_a_word_not_an_error(
     assert gone.status_code == 200 and "This step is no longer needed." in gone.text
     decided = client.post("/tasks/approve", data={"step": "0"}, headers=htmx)
     assert decided.status_code == 200 and "Already decided on another device." in decided.text
+    plan = client.post("/tasks/approve-plan", data={"steps": ["r1.goto_bp2"]}, headers=htmx)
+    assert plan.status_code == 200 and "The plan changed or was decided meanwhile." in plan.text
+    odd = {"steps": ["r1.goto_bp2"], "decision": "maybe"}
+    assert client.post("/tasks/approve-plan", data=odd, headers=htmx).status_code == 422
     plain = client.post(
         "/tasks/done", data={"card": "place_bp1", "csrf_token": token}, follow_redirects=False
     )

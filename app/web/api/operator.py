@@ -6,7 +6,7 @@ from __future__ import annotations
 from typing import Annotated, Literal
 
 from fastapi import APIRouter, Path
-from pydantic import BaseModel
+from pydantic import BaseModel, Field
 
 from app.pages.cards import CardKind, TaskCard, task_cards
 from app.station.live import StationError
@@ -15,8 +15,16 @@ from app.web.actions import answer, perform
 from app.web.api.common import ACT, BEARER, PREFIX, NamePath, acted, errors
 from app.web.api.schemas import ActionAnswer, EventOut, RequestBody, events_out
 from app.web.deps import LiveDep, TasksCaller
-from app.web.limits import CARD_CHARS, MAX_STEP
-from planner.runner import Approve, Event, EventKind, MaintenanceDone, Reject
+from app.web.limits import CARD_CHARS, MAX_PLAN_STEPS, MAX_STEP, NAME_CHARS
+from planner.runner import (
+    Approve,
+    ApprovePlan,
+    Event,
+    EventKind,
+    MaintenanceDone,
+    Reject,
+    RejectPlan,
+)
 from planner.runner.vocabulary import PersonAct
 
 router = APIRouter(prefix=PREFIX, tags=["tasks"], dependencies=BEARER)
@@ -24,9 +32,10 @@ router = APIRouter(prefix=PREFIX, tags=["tasks"], dependencies=BEARER)
 
 class TaskCardOut(BaseModel):
     """One thing a person must do now: a command card (POST /api/cards/{card}/done), a
-    maintenance instruction (POST /api/maintenance/{transition}/done) or a recovery step to
-    approve (POST /api/approvals/{step}).  A `rejectable` instruction is a person's step of
-    a forbidden-state recovery: one who cannot do it rejects it like an approval."""
+    maintenance instruction (POST /api/maintenance/{transition}/done) or a recovery plan to
+    approve (POST /api/recovery-plan with its `plan`; one step at a time: POST
+    /api/approvals/{step}).  A `rejectable` instruction is a person's step of a
+    forbidden-state recovery: one who cannot do it rejects it like an approval."""
 
     kind: CardKind
     key: str
@@ -38,6 +47,17 @@ class TaskCardOut(BaseModel):
     step: int
     of: int
     rejectable: bool = False
+    cause: str = Field("", description="what is wrong and what it stops, read first")
+    safety: str = Field("", description="a maintenance step's safety note, read before Done")
+    steps: list[str] = Field(
+        default_factory=list, description="approval: the recovery plan's machine steps in words"
+    )
+    plan: list[str] = Field(
+        default_factory=list,
+        description="approval: the steps' transitions; send them back to "
+        "POST /api/recovery-plan to approve or reject the whole plan at once",
+    )
+    waiting: str = Field("", description="instruction shown ahead: what the station does first")
 
 
 class CardDoneOut(BaseModel):
@@ -47,6 +67,15 @@ class CardDoneOut(BaseModel):
 
 class ApprovalIn(RequestBody):
     decision: Literal["approve", "reject"]
+
+
+class PlanDecisionIn(RequestBody):
+    decision: Literal["approve", "reject"]
+    steps: list[Annotated[str, Field(min_length=1, max_length=NAME_CHARS)]] = Field(
+        min_length=1,
+        max_length=MAX_PLAN_STEPS,
+        description="the plan's steps as the approval card lists them (its `plan`)",
+    )
 
 
 def card_out(card: TaskCard) -> TaskCardOut:
@@ -61,6 +90,11 @@ def card_out(card: TaskCard) -> TaskCardOut:
         step=card.step,
         of=card.of,
         rejectable=card.rejectable,
+        cause=card.cause,
+        safety=card.safety,
+        steps=list(card.steps),
+        plan=list(card.plan),
+        waiting=card.waiting,
     )
 
 
@@ -120,4 +154,22 @@ async def approval(
         action: Approve | Reject = Approve(user=caller.name, step=step)
     else:
         action = Reject(user=caller.name, step=step)
+    return acted(await perform(live, action))
+
+
+@router.post(
+    "/recovery-plan",
+    summary="Approve or reject the whole forbidden-state recovery plan at once",
+    responses=ACT,
+)
+async def recovery_plan(caller: TasksCaller, live: LiveDep, body: PlanDecisionIn) -> ActionAnswer:
+    """One decision on every machine step of the recovery plan the approval card shows
+    (GET /api/tasks: its `plan`).  Approved steps are taken as their turn comes, without
+    asking again; a rejected plan's steps are left out when the station plans again.  409
+    when the plan changed since it was shown.  Needs `tasks`."""
+    steps = tuple(body.steps)
+    if body.decision == "approve":
+        action: ApprovePlan | RejectPlan = ApprovePlan(user=caller.name, steps=steps)
+    else:
+        action = RejectPlan(user=caller.name, steps=steps)
     return acted(await perform(live, action))

@@ -34,6 +34,7 @@ from app.web.audit_log import (
     detail_of,
     iso,
     parse_page,
+    record_words,
 )
 from app.web.deps import AuditCriteria, AuditReader, Caller, LiveDep, StoreDep
 from app.web.pages import render
@@ -65,9 +66,12 @@ class Row:
     resource_words: str = ""
 
 
-def subject_words(words: Wording, subject: str) -> str:
+def subject_words(words: Wording, subject: str, kind: str = "", detail: Any = None) -> str:
     """A record's subject in words: "operation:get_nr_r2" → "operation: robot 2 takes the
-    nutrunner"; the page keeps the raw subject in the opened detail, as the CSV has it."""
+    nutrunner", a person's decision as the screen numbered it ("approved step 2 of 6: ...",
+    `record_words`); the page keeps the raw subject in the opened detail, as the CSV has it."""
+    if kind == EventKind.OPERATOR:
+        return record_words(words, kind, subject, detail or {})
     kind, colon, name = subject.partition(":")
     if not colon or not name or " " in name:  # a sentence ("E6: r2 stops answering")
         return words.text(subject)
@@ -92,7 +96,7 @@ def row_of(record: AuditRecord, words: Wording) -> Row:
         summary,
         pretty,
         record.kind in ABNORMAL_KINDS,
-        subject_words(words, record.subject),
+        subject_words(words, record.subject, record.kind, detail),
         words.resource(record.resource) if record.resource else "",
     )
 
@@ -256,9 +260,14 @@ def audit_csv(
     )
     audit.write(store, live.name, [export], now)
 
+    words = live.view.model.words
+
+    def said(record: AuditRecord) -> str:
+        return record_words(words, record.kind, record.subject, detail_of(record))
+
     def lines() -> Iterator[str]:
         with store.sessions() as session:
-            yield from audit.csv_lines(session, chosen.where)
+            yield from audit.csv_lines(session, chosen.where, said=said)
 
     station = re.sub(r"[^A-Za-z0-9_.-]", "_", live.name) or "station"
     stamp = datetime.fromtimestamp(now, UTC).strftime("%Y%m%dT%H%M%SZ")

@@ -24,9 +24,9 @@ from app.station.view import StationView
 from app.web import outcomes
 from app.web.actions import answer, maintenance_step, perform
 from app.web.deps import Caller, LiveDep, OptionalCaller, StoreDep, TasksCaller
-from app.web.limits import CARD_CHARS, MAX_STEP, NAME_CHARS
+from app.web.limits import CARD_CHARS, MAX_PLAN_STEPS, MAX_STEP, NAME_CHARS
 from app.web.pages import htmx, render, same_origin_path
-from planner.runner import Approve, MaintenanceDone, Reject
+from planner.runner import Approve, ApprovePlan, MaintenanceDone, Reject, RejectPlan
 
 router = APIRouter(include_in_schema=False)
 
@@ -133,6 +133,29 @@ async def approve(
     )
     return await tap(
         request, caller, live, perform(live, action), "Already decided on another device."
+    )
+
+
+@router.post("/tasks/approve-plan")
+async def approve_plan(
+    request: Request,
+    caller: TasksCaller,
+    live: LiveDep,
+    steps: Annotated[list[str], Form(max_length=MAX_PLAN_STEPS)],
+    decision: Annotated[str, Form(pattern="^(approve|reject)$")] = "approve",
+) -> Response:
+    """The recovery plan approved or rejected in one decision, its steps as the card showed
+    them (a plan that changed since is refused: the fresh card comes back)."""
+    if any(len(name) > NAME_CHARS for name in steps):
+        raise HTTPException(422, f"steps: a step name has at most {NAME_CHARS} characters")
+    named = tuple(steps)
+    action = (
+        ApprovePlan(user=caller.name, steps=named)
+        if decision == "approve"
+        else RejectPlan(user=caller.name, steps=named)
+    )
+    return await tap(
+        request, caller, live, perform(live, action), "The plan changed or was decided meanwhile."
     )
 
 

@@ -21,7 +21,7 @@ from app.web.deps import ServerDep, Simulator
 from app.web.limits import NAME_CHARS
 from app.web.pages import htmx, live_fragment, render
 from planner.runner import IntentionState, OperationState
-from planner.words import Wording
+from planner.words import Wording, recovery_words
 
 router = APIRouter(include_in_schema=False)
 Experiments = dict[str, tuple[str, Scenario]]  # id -> (title, scenario), as Server keeps them
@@ -54,7 +54,8 @@ def experiments_context(experiments: Experiments, words: Wording) -> dict[str, A
                 "description": words.text(scenario.description),
                 "intentions": [words.intention(i) for i in scenario.started],
                 "faults": [fault_text(f, words) for f in scenario.faults],
-                "recovery": [words.text(str(r)) for r in expect.get("recovery") or ()],
+                "recovery": [recovery_words(str(r)) for r in expect.get("recovery") or ()],
+                "recovery_labels": [str(r) for r in expect.get("recovery") or ()],
                 "operator": [words.text(str(o)) for o in expect.get("operator") or ()],
             }
         )

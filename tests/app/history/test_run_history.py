@@ -3,6 +3,7 @@ played on a running station, the operator working through its cards."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 from sqlalchemy import select
@@ -54,4 +55,15 @@ def test_a_played_experiment_is_one_recorded_run_from_its_start_to_its_finish(
         station.built.server.store, live.name, "operator", live.model.station, live.model.words,
         live.wall(),
     )  # fmt: skip
+    # the demo model marks assembling the engine as its product: tightening alone is none
+    assert today.engines == ()
+    unmarked = dataclasses.replace(
+        live.model.station,
+        intentions=tuple(
+            dataclasses.replace(i, product=False) for i in live.model.station.intentions
+        ),
+    )  # a model that marks no product: every finished run counts, as before
+    today = done_today(
+        station.built.server.store, live.name, "operator", unmarked, live.model.words, live.wall()
+    )
     assert [item.text for item in today.engines] == ["Tighten every bolt pair: complete"]

@@ -652,7 +652,8 @@ def test_recovery_steps_of_people_are_instructions_and_of_machines_approvals(
     asked = [e for e in later.events if e.kind is EventKind.APPROVAL]
     assert [e.subject for e in asked] == ["r1.goto_scan"]
     move = cards(later.state)["r1.goto_scan"]
-    assert move.kind is CardKind.APPROVAL and "The station will do this step" in move.why
+    assert move.kind is CardKind.APPROVAL and "Nothing moves before you approve" in move.why
+    assert move.title.endswith("machine steps") and move.plan[0] == "r1.goto_scan"
     assert later.state.values["r1.ref"] != "scan"  # not taken before it is approved
 
 
