@@ -152,3 +152,55 @@ def test_the_runner_counts_the_operations_of_a_run_across_its_replans() -> None:
     shown = {progress_words(s) for s in states}
     assert f"{len(finished)} of {len(finished)} operations done" in shown
     assert progress_words(last) == f"{len(finished)} of {len(finished)} operations done"
+
+
+def test_an_identical_save_says_nothing_changed_and_activation_makes_the_heading_current(
+    station: RunningStation,
+) -> None:
+    from app.store import versions
+
+    client, token = signed_in(station)
+    live = station.live
+    text = live.model.text
+
+    def numbers() -> list[int]:
+        with station.built.server.store.sessions() as session:
+            return [v.number for v in versions.versions(session, live.name)]
+
+    page = client.get("/model").text
+    assert "Editing version 1 (active)" in page and 'name="based_on" value="1"' in page
+    same = post(client, token, "/model/save", text=text.replace("\n", "\r\n"), based_on=1)
+    assert same.status_code == 200 and "Nothing changed" in same.text
+    assert numbers() == [1]
+    plain = post(client, token, "/model/save", htmx=False, text=text, based_on=1)
+    assert plain.status_code == 303 and numbers() == [1]  # a plain form: the same, said once
+    assert "Nothing changed" in client.get(plain.headers["location"]).text
+
+    changed = text + "\n# checked\n"
+    saved = post(client, token, "/model/save", text=changed, based_on=1)
+    assert saved.status_code == 200 and numbers() == [2, 1]
+    assert 'id="model-editing" hx-swap-oob="true" data-editing="2"' in saved.text
+    assert "Editing version 2 (version 1 is active)" in saved.text
+    assert "Nothing changed" in post(client, token, "/model/save", text=changed, based_on=2).text
+    assert numbers() == [2, 1]
+
+    activated = post(client, token, "/model/activate", version=2, editing=1)
+    assert activated.status_code == 200, activated.text
+    assert live.view.model.number == 2
+    assert "Editing version 1 (version 2 is active)" in activated.text  # not "(active)"
+    assert 'id="model-diff"' in activated.text and "against the active version 2" in activated.text
+    assert "Editing version 2 (active)" in client.get("/model").text
+
+    api = {"Authorization": f"Bearer {station.token(station.client(), 'engineer')}"}
+    again = client.post("/api/models", headers=api, json={"text": changed, "based_on": 2})
+    assert again.status_code == 200
+    assert again.json() == {
+        "number": 2,
+        "saved": False,
+        "message": "nothing changed: the text is that of version 2",
+    }
+    newest = client.post("/api/models", headers=api, json={"text": changed})  # the newest
+    assert newest.status_code == 200 and newest.json()["saved"] is False
+    other = client.post("/api/models", headers=api, json={"text": text, "based_on": 2})
+    assert other.status_code == 201 and other.json()["number"] == 3
+    assert numbers() == [3, 2, 1]
