@@ -204,3 +204,23 @@ def test_an_identical_save_says_nothing_changed_and_activation_makes_the_heading
     other = client.post("/api/models", headers=api, json={"text": text, "based_on": 2})
     assert other.status_code == 201 and other.json()["number"] == 3
     assert numbers() == [3, 2, 1]
+
+
+def test_a_plan_box_clips_its_text_with_an_ellipsis_and_keeps_it_whole_in_its_title() -> None:
+    from app.pages import plans
+
+    word = "tool-changer-connector-reset-and-lock-check"
+    lines = plans.wrap(f"reset the {word} now")
+    assert all(len(line) <= plans.LABEL_CHARS for line in lines)
+    assert lines[1].endswith("…") and lines[1].startswith("tool-changer")
+    drawing = plans.layout("test", [plans.Step("s", "ready", "next", f"whole: {word}", word)], [()])
+    (node,) = drawing.nodes
+    assert node.title == f"whole: {word}" and node.label == word
+    from jinja2 import Environment, FileSystemLoader
+
+    from tests.support.stations import ROOT
+
+    env = Environment(loader=FileSystemLoader(str(ROOT / "templates")), autoescape=True)
+    macros = env.get_template("_station_macros.html").module  # type: ignore[attr-defined]
+    svg = str(macros.plan_graph(drawing))
+    assert 'clip-path="url(#plan-test-clip)"' in svg and '<clipPath id="plan-test-clip">' in svg
