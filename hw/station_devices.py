@@ -42,6 +42,8 @@ class World(Protocol):
 
     def restart(self, start: Mapping[str, Value]) -> None: ...
 
+    def put_back(self) -> list[str]: ...
+
     def take_observed(self) -> dict[str, Value]: ...
 
     def close(self) -> None: ...
@@ -186,6 +188,13 @@ class StationDevices:
             each.restart(start, now)
         self.values = dict(start)
         self.heard.clear()
+
+    def put_back(self) -> list[str]:
+        """The emulated devices out of the faults an experiment left, where they are (the
+        simulation panel's "Put devices back"); the devices put back."""
+        if self.world is None:
+            raise ValueError("only emulated devices can be put back")
+        return self.world.put_back()
 
     def wait_until_ready(self, timeout: float, poll: float = 0.1) -> list[str]:
         """Waits (before the station's clock starts) until every device answers, as a station

@@ -14,7 +14,13 @@ answering, from its last sign of life until work goes on with another resource (
 answers again); an effect that timed out, from when it was due to start until the next
 step; an unexpected result, from the start of the attempt until the next step; a forbidden
 state; restart mode; an intention in error while the station follows a maintenance plan; an
-intention in error with no plan to mend it (the engineer's to solve).
+intention in error with no plan to mend it (the engineer's to solve).  Waiting for a person
+is one cause whoever the person is: a maintenance step, an approval, or a routine card that
+waited past its reminder (the whole wait).  An outage counts in a run from its start at the
+earliest; one that ended before the run began is not the run's.
+
+Size: one builder, a handler per record kind sharing its open bars and wastes; split, each
+part would need all of that state.
 """
 
 from __future__ import annotations
@@ -57,6 +63,7 @@ KINDS: frozenset[RecordKind] = frozenset(
         *(EventKind.PLAN, EventKind.INSTRUCTION, EventKind.APPROVAL, EventKind.FORBIDDEN),
         *(EventKind.RECOVERED, EventKind.OPERATOR, EventKind.RESTART, EventKind.FAULT),
         *(EventKind.DONE, EventKind.STOPPED, EventKind.RUN, AuditKind.EXPERIMENT),
+        EventKind.REMINDER,
     }
 )
 """The record kinds a timeline reads (and `app.history.runs` needs), for the log's query."""
@@ -64,6 +71,9 @@ KINDS: frozenset[RecordKind] = frozenset(
 UNCONTROLLED = (TransitionKind.AUTOMATIC.value, TransitionKind.EFFECT.value)
 ROUTINE = frozenset(r.value for r in ReplanReason if r.routine)  # replanning, not recovering
 FOUND = PlanStatus.FOUND.value
+# one cause, whoever the person is (the legend's words): a maintenance step, an approval, or
+# a routine card that waited past its reminder
+WAITING_FOR_PEOPLE = "waiting for a person"
 
 
 def timeline(
@@ -134,6 +144,7 @@ class _Builder:
             EventKind.RESTART: self.on_restart,
             EventKind.INTENTION: self.on_intention,
             EventKind.OPERATION: self.on_operation,
+            EventKind.REMINDER: self.on_reminder,
         }
 
     def build(self, happenings: Sequence[Happening]) -> Timeline:
@@ -172,7 +183,7 @@ class _Builder:
         if not resource:
             return
         if not (controlled and ability is not None):
-            self.on_effect(h)
+            self.on_effect(h)  # an effect or automatic step
             return
         self.close(resource, h.time)
         kind = BarKind.PERSON if resource in self.people else BarKind.WORK
@@ -180,6 +191,7 @@ class _Builder:
         self.running[resource] = _Open(resource, h.time, label, label, kind)
 
     def on_effect(self, h: Happening) -> None:
+        self.end_wastes(Cause.PERSON, h.time, of=h.subject)  # a routine card done
         running = self.running.get(self.owner(h.subject, ""))
         if running is not None:
             running.last = h.time
@@ -216,16 +228,23 @@ class _Builder:
         self.wastes.append(_Waste(Cause.UNEXPECTED, cause, start, until_next_step=True))
 
     def on_unavailable(self, h: Happening) -> None:
+        """A resource stopped answering: an outage of this run, counted from the run's start
+        at the earliest (one that began in a run before is not this run's)."""
         resource = h.subject
         since = max(self.run.start, h.time - float(h.detail.get("silent_for", 0) or 0))
         self.close(resource, h.time, "no answer")
         self.silent.setdefault(resource, since)
         cause = f"{self.words.resource(resource)} stopped answering"
-        self.mark(resource, h.time, MarkKind.ERROR, cause)
+        if h.time >= self.run.start:  # one from before the run is its outage, not its mark
+            self.mark(resource, h.time, MarkKind.ERROR, cause)
         self.wastes.append(_Waste(Cause.OUTAGE, cause, since, of=resource))
 
     def on_available(self, h: Happening) -> None:
         resource = h.subject
+        if h.time <= self.run.start:  # an outage that ended before this run began
+            self.silent.pop(resource, None)
+            self.end_wastes(Cause.OUTAGE, h.time, of=resource)
+            return
         since = self.silent.pop(resource, self.run.start)
         self.bars.append(Bar(resource, since, h.time, "", NOT_ANSWERING, BarKind.OUTAGE))
         again = f"{self.words.resource(resource)} answers again"
@@ -267,9 +286,15 @@ class _Builder:
     def wait(self, h: Happening, lane: str, kind: BarKind, what: str) -> None:
         if h.subject not in self.waits:
             self.waits[h.subject] = _Open(lane, h.time, what, what, kind)
-            person = self.words.resource(lane) if lane in self.people else "a person"
-            cause = f"waiting for {person}"
-            self.wastes.append(_Waste(Cause.PERSON, cause, h.time, of=h.subject))
+            self.wastes.append(_Waste(Cause.PERSON, WAITING_FOR_PEOPLE, h.time, of=h.subject))
+
+    def on_reminder(self, h: Happening) -> None:
+        """A routine card (a person's step in the plan) waited past its reminder: the whole
+        wait is time lost waiting for a person, until the step is done."""
+        started = max(self.run.start, h.time - float(h.detail.get("waited", 0) or 0))
+        open_ = [w for w in self.wastes if w.of == h.subject and w.end is None]
+        if not any(w.cause is Cause.PERSON for w in open_):
+            self.wastes.append(_Waste(Cause.PERSON, WAITING_FOR_PEOPLE, started, of=h.subject))
 
     def on_operator(self, h: Happening) -> None:
         step = str(h.detail.get("transition", ""))

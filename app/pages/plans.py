@@ -119,10 +119,11 @@ def shorten(text: str, limit: int = LABEL_CHARS) -> str:
 
 
 def wrap(text: str, width: int = LABEL_CHARS) -> tuple[str, ...]:
-    """`text` in lines of at most `width` characters, broken at spaces only (a longer word
-    keeps a line of its own): wrapped, never cut."""
+    """`text` in lines of at most `width` characters, broken at spaces; a word longer than a
+    line ends in an ellipsis (the node's title has it whole, and the drawing clips each
+    node's text to its box)."""
     lines: list[str] = []
-    for word in text.split():
+    for word in (shorten(w, width) for w in text.split()):
         if lines and len(lines[-1]) + 1 + len(word) <= width:
             lines[-1] += " " + word
         else:

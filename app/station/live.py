@@ -38,6 +38,7 @@ from app.station.requests import (
     ConfirmCard,
     InjectFault,
     PlayExperiment,
+    PutDevicesBack,
     ReportTampering,
     Request,
     Shelve,
@@ -186,6 +187,13 @@ class LiveStation:
         """Put the station back to a scenario's start and arm its faults (not on real devices)."""
         self._require_simulated("experiments are played")
         return self.submit(PlayExperiment(user, scenario, title))
+
+    def put_devices_back(self, user: str) -> Future[list[str]]:
+        """The emulated devices out of the faults an experiment left (not on real devices,
+        nor on a simulated world, which an experiment puts back whole)."""
+        if not self.on_emulators:
+            raise StationError("only emulated devices can be put back")
+        return self.submit(PutDevicesBack(user))
 
     def acknowledge(self, key: str, user: str, note: str) -> Future[AlarmChange]:
         return self.submit(Acknowledge(user, key, note))

@@ -23,7 +23,8 @@ from app.station.cycle import CycleResult
 from app.station.rounds import Answer, Round
 from app.station.running import Running
 from app.station.scenario import Scenario
-from app.store.audit import AuditEntry
+from app.store.audit import AuditEntry, AuditKind
+from hw.devices import DeviceKind
 from hw.faults import Fault
 from planner.runner import Action, Event, EventKind, Reply
 from planner.runner.vocabulary import PersonAct
@@ -139,6 +140,23 @@ class PlayExperiment:
     def apply(self, running: Running, round_: Round) -> Answer:
         experiments.play(running, round_, self.scenario, self.title, self.user)
         return settled(None)
+
+
+@dataclass(frozen=True)
+class PutDevicesBack:
+    """The emulated devices out of the faults an experiment left (`EmulatedWorld.put_back`),
+    audited with the user; refused on anything but emulated devices."""
+
+    user: str
+
+    def apply(self, running: Running, round_: Round) -> Answer:
+        put_back = getattr(running.devices, "put_back", None)
+        if running.devices.kind is not DeviceKind.EMULATED or put_back is None:
+            raise StationError("only emulated devices can be put back")
+        names: list[str] = put_back()
+        detail = {"devices": ", ".join(names)}
+        round_.record(AuditEntry(AuditKind.EXPERIMENT, "devices put back", self.user, "", detail))
+        return settled(names)
 
 
 @dataclass(frozen=True)

@@ -17,6 +17,11 @@ def versions(session: Session, station: str) -> list[ModelVersion]:
     return list(session.scalars(query.order_by(ModelVersion.number.desc())))
 
 
+def newest(session: Session, station: str) -> ModelVersion | None:
+    query = select(ModelVersion).where(ModelVersion.station == station)
+    return session.scalars(query.order_by(ModelVersion.number.desc()).limit(1)).first()
+
+
 def version(session: Session, station: str, number: int) -> ModelVersion | None:
     query = select(ModelVersion).where(
         ModelVersion.station == station, ModelVersion.number == number

@@ -68,6 +68,23 @@ def validate(srv: Server, text: str, user: str) -> list[Problem]:
     return found
 
 
+def unchanged(srv: Server, text: str, based_on: int | None) -> int | None:
+    """The number of the version `text` is identical to (line ends aside): the one it was
+    based on, or else the newest one (None if it differs, or there is no such version)."""
+    with srv.store.sessions() as session:
+        if based_on is not None:
+            row = versions.version(session, srv.live.name, based_on)
+        else:
+            row = versions.newest(session, srv.live.name)
+        if row is not None and _lines(row.text) == _lines(text):
+            return row.number
+    return None
+
+
+def _lines(text: str) -> str:
+    return text.replace("\r\n", "\n")
+
+
 def save(
     srv: Server, text: str, author: str, note: str
 ) -> tuple[ModelVersion | None, list[Problem]]:

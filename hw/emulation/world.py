@@ -166,6 +166,31 @@ class EmulatedWorld:
         self.observed.clear()
         self.settle()
 
+    def put_back(self) -> list[str]:
+        """Every emulated device out of what an experiment left broken (a cut network, a
+        stall, a protective stop, frozen data, power off, a stuck sensor, a failing lock),
+        where it is: nothing is moved and no value set, unlike `restart`.  The devices put
+        back; waits until the emulators have it."""
+        names = []
+        for device in self.devices.devices:
+            if device.name not in self.controls:
+                continue
+            if device.driver is DriverKind.UR:
+                for op in ("network", "stall", "freeze"):
+                    key = "down" if op == "network" else "on"
+                    self.request(device.name, {"op": op, key: False})
+                self.request(device.name, {"op": "power", "on": True, "brake_release": True})
+                self.request(device.name, {"op": "protective_stop", "on": False})
+            elif device.driver is DriverKind.MODBUS:
+                self.request(device.name, {"op": "network", "mode": "up"})
+                self.request(device.name, {"op": "freeze", "frozen": False})
+                self.request(device.name, {"op": "reset"})  # stuck sensors, failing locks
+            else:
+                continue  # a watch has no faults to clear
+            names.append(device.name)
+        self.settle()
+        return names
+
     def take_observed(self) -> dict[str, Value]:
         """Values people changed that no device measures, once (decision variables)."""
         observed, self.observed = self.observed, {}

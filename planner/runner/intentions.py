@@ -29,4 +29,6 @@ def start_and_finish(tick: Tick) -> None:
             and not state.restart_mode
             and index.intention_precondition[name](current)
         ):
+            if not state.busy_intentions():  # production starts: a new run's progress
+                state.run_finished = ()
             tick.set_intention(name, IntentionState.EXECUTING, "precondition holds")

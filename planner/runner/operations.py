@@ -60,6 +60,7 @@ def finish_operation(tick: Tick, name: str) -> None:
     state.operation_goals.pop(name)
     forget_failures(tick, name)
     tick.set_operation(name, OperationState.INITIAL, "goal reached")
+    state.run_finished += (name,)
     if state.operation_plan is not None:
         state.operation_plan.finish(name)
     tick.replan_transitions(ReplanReason.GOALS)

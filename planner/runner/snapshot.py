@@ -62,6 +62,7 @@ _ADDED = {
     "maintenance_due": False,
     "cannot_act": {},
     "stale": {},
+    "run_finished": [],
 }
 
 T = TypeVar("T")
@@ -121,6 +122,7 @@ def _fields(state: RunnerState) -> dict[str, Any]:
         "maintenance_due": state.maintenance_due,
         "cannot_act": dict(state.cannot_act),
         "stale": dict(state.stale),
+        "run_finished": list(state.run_finished),
     }
 
 
@@ -280,6 +282,11 @@ class _Loader:
             "reminded": self.counts(data["reminded"], "transition", "reminded"),
             "announced": tuple(self.steps(data["announced"], "specification", "announced")),
             "maintenance_due": self.check(data["maintenance_due"], bool, "maintenance_due"),
+            "run_finished": tuple(
+                name
+                for name in self.check(data["run_finished"], list, "run_finished")
+                if self.keep(name, "operation", "run_finished")
+            ),
             "cannot_act": {
                 name: self.check(why, str, f"cannot_act['{name}']")
                 for name, why in self.mapping(data["cannot_act"], "resource", "cannot_act").items()

@@ -174,6 +174,9 @@ class RunnerState:
     # restart mode: operations being reset, planned to reach their precondition
     resetting: set[str] = field(default_factory=set)
     auto_start: set[str] = field(default_factory=set)  # intentions that start by themselves
+    # the operations finished since production last started (an intention went executing
+    # with none busy), whichever plan they were in: progress counts them across replans
+    run_finished: tuple[str, ...] = ()
     next_background_check: float = 0.0
     replan_operations: ReplanReason | None = None  # why the operation plan must be made again
     replan_transitions: ReplanReason | None = None

@@ -13,8 +13,9 @@
 // whose tokenizer state changed, e.g. an opened quote), so large models stay responsive.
 //
 // window.sequenceEditor.markErrors([{line, column, message}]) marks lines in the gutter and the
-// mirror and writes each message in a note under its line; [] clears. After any htmx swap the
-// error list (default #model-errors) is read again. Clicking an error puts the caret there.
+// mirror and writes each message in a note in the editor's own strip under the code, in the
+// layout's flow: it takes room from the code and never covers a line of it; [] clears. After
+// any htmx swap the error list (default #model-errors) is read again. Clicking an error puts the caret there.
 // Tab inserts two spaces (Shift+Tab outdents); Escape then Tab leaves the editor.
 (() => {
   "use strict";
@@ -208,8 +209,14 @@
       this.measure.textContent = "0".repeat(50);
 
       ta.replaceWith(this.body);
-      this.body.append(this.mirror, ta, this.notes, this.measure);
+      this.body.append(this.mirror, ta, this.measure);
       this.root.prepend(this.gutter);
+      this.root.append(this.notes);
+      this.notes.hidden = true;
+      this.notes.addEventListener("click", (e) => {
+        const note = e.target.closest?.(".editor-note");
+        if (note) this.goTo(Number(note.dataset.line), Number(note.dataset.column) || 1);
+      });
 
       ta.addEventListener("input", () => this.update());
       ta.addEventListener("scroll", () => this.sync(), { passive: true });
@@ -222,10 +229,6 @@
 
     get lineHeight() {
       return parseFloat(getComputedStyle(this.mirror).lineHeight) || 22;
-    }
-
-    get padding() {
-      return parseFloat(getComputedStyle(this.mirror).paddingTop) || 0;
     }
 
     get charWidth() {
@@ -295,7 +298,6 @@
     sync() {
       const { scrollTop: top, scrollLeft: left } = this.textarea;
       this.code.style.transform = `translate(${-left}px, ${-top}px)`;
-      this.notesLayer.style.transform = `translate(${-left}px, ${-top}px)`;
       this.gutterInner.style.transform = `translateY(${-top}px)`;
     }
 
@@ -322,43 +324,31 @@
         if (!byLine.has(mark.line)) byLine.set(mark.line, []);
         byLine.get(mark.line).push(mark);
       }
-      const lh = this.lineHeight;
-      const pad = this.padding;
-      const cw = this.charWidth;
       for (const [line, marks] of byLine) {
         this.code.children[line - 1]?.classList.add("is-error");
         this.gutterInner.children[line - 1]?.classList.add("is-error");
         const note = document.createElement("div");
         note.className = "editor-note";
         note.dataset.line = String(line);
-        note.style.top = `${pad + line * lh}px`;
+        note.dataset.column = String(marks[0].column);
         for (const [k, mark] of marks.entries()) {
           if (k) note.append(document.createElement("br"));
           note.append(mark.message);
         }
         this.notesLayer.append(note);
-        // under its column, but inside the editor's unscrolled width where it fits
-        const x = pad + Math.min(marks[0].column - 1, this.lines[line - 1].length) * cw;
-        const room = this.body.clientWidth - note.offsetWidth - 2 * pad;
-        note.style.left = `${Math.max(pad, Math.min(x, room))}px`;
       }
+      this.notes.hidden = byLine.size === 0;
       this.fadeNotesAtCaret();
     }
 
-    // A note covers the line(s) under its error line; it fades while the caret is there.
+    // The note of the line the caret is on stands out (the notes never cover the code).
     fadeNotesAtCaret(blurred = false) {
       const ta = this.textarea;
       const focused = !blurred && document.activeElement === ta;
       let caretLine = 0;
-      if (focused) {
-        const before = ta.value.slice(0, ta.selectionStart);
-        caretLine = before.split("\n").length;
-      }
-      const lh = this.lineHeight;
+      if (focused) caretLine = ta.value.slice(0, ta.selectionStart).split("\n").length;
       for (const note of this.notesLayer.children) {
-        const line = Number(note.dataset.line);
-        const covered = Math.max(1, Math.ceil(note.offsetHeight / lh));
-        note.classList.toggle("is-under-caret", focused && caretLine > line && caretLine <= line + covered);
+        note.classList.toggle("is-at-caret", focused && Number(note.dataset.line) === caretLine);
       }
     }
 

@@ -81,6 +81,9 @@ def test_engineer_edits_the_model_sees_the_error_located_fixes_and_activates(
     # the heading says so at once, without a reload
     page.locator("#model-running[data-active='2']").wait_for()
     assert page.locator("#model-running").inner_text() == "version 2 runs"
+    # the editor holds version 2 (saved from it), now the active one: the heading says so
+    assert page.locator("#model-editing").inner_text() == "Editing version 2 (active)"
+    assert "against the active version 2" in page.locator("#model-diff").inner_text()
     page.locator("tr[data-version='1']").get_by_role("link", name="Diff to active").click()
     changed = page.locator("#model-diff pre.diff .add").first
     changed.wait_for()

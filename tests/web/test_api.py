@@ -243,7 +243,7 @@ def test_models_are_saved_listed_and_a_broken_one_is_a_422_with_located_problems
         "/api/models", headers=engineer, json={"text": text + "\n# a comment\n", "note": "copy"}
     )
     assert response.status_code == 201, response.text
-    assert response.json() == {"number": 2}
+    assert response.json() == {"number": 2, "saved": True, "message": ""}
     listed = client.get("/api/models", headers=engineer).json()
     assert [(v["number"], v["active"], v["author"]) for v in listed] == [
         (2, False, "engineer"),

@@ -300,6 +300,15 @@ ROUTES = [
     Route("GET", "/model/fragments/station", needs(MODEL)),
     Route("GET", "/simulation", needs(SIMULATE), says="<h1"),
     Route("GET", "/simulation/fragments/status", needs(SIMULATE)),
+    Route("GET", "/simulation/fragments/experiments", needs(SIMULATE)),
+    Route(
+        "POST",
+        "/simulation/devices/put-back",
+        needs(SIMULATE),
+        form={},
+        reached=303,
+        says="only emulated devices",
+    ),
     Route(
         "POST",
         "/simulation/experiment",

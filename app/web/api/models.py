@@ -39,10 +39,21 @@ class ModelTextOut(ModelVersionOut):
 class ModelIn(RequestBody):
     text: Annotated[str, StringConstraints(min_length=1, max_length=MAX_MODEL_CHARS)]
     note: Note = ""
+    based_on: int | None = Field(
+        default=None,
+        ge=1,
+        le=MAX_VERSION,
+        description="the version the text was edited from (default: the newest one): "
+        "identical text is not saved again",
+    )
 
 
 class ModelSaved(BaseModel):
     number: int
+    saved: bool = Field(
+        default=True, description="false: the text is that of version `number`, nothing saved"
+    )
+    message: str = ""
 
 
 class ActivatedOut(BaseModel):
@@ -93,6 +104,10 @@ def get_model(_caller: ModelEditor, srv: ServerDep, number: VersionNumber) -> Mo
     response_model=ModelSaved,
     responses={
         **errors(400, 401, 403),
+        200: {
+            "model": ModelSaved,
+            "description": "nothing changed: the text is that of the version it was based on",
+        },
         422: {
             "model": Invalid,
             "description": "the model is not valid: `problems` lists each at its line and column",
@@ -101,7 +116,14 @@ def get_model(_caller: ModelEditor, srv: ServerDep, number: VersionNumber) -> Mo
 )
 def save_model(caller: ModelEditor, srv: ServerDep, body: ModelIn) -> Any:
     """The text is checked as `sp check` would; a valid one becomes the next version (not
-    yet active: POST /api/models/{number}/activate).  Needs `model`."""
+    yet active: POST /api/models/{number}/activate).  Text identical to the version it was
+    based on is not saved again: 200 with `saved` false and that version's number.  Needs
+    `model`."""
+    same = model_editing.unchanged(srv, body.text, body.based_on)
+    if same is not None:
+        message = f"nothing changed: the text is that of version {same}"
+        unchanged = ModelSaved(number=same, saved=False, message=message)
+        return JSONResponse(unchanged.model_dump(), status_code=200)
     row, problems = model_editing.save(srv, body.text, caller.name, body.note.strip())
     if row is None:
         first = problems[0]

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Form, Request
+from fastapi import APIRouter, Form, HTTPException, Request
 from fastapi.responses import Response
 
 from app.pages import station_rows
@@ -49,7 +49,12 @@ Reason = Annotated[str, Form(max_length=NOTE_CHARS)]
 
 
 async def control(
-    request: Request, caller: Caller, live: LiveStation, action: Action, done: str
+    request: Request,
+    caller: Caller,
+    live: LiveStation,
+    action: Action,
+    done: str,
+    restart_oob: bool = False,
 ) -> Response:
     """Carry out `action`; htmx gets the refreshed status with `done` as a message, a plain
     browser a redirect back to the page it came from."""
@@ -61,7 +66,14 @@ async def control(
     view = live.view
     context = status_context(view)
     return render(
-        request, "_station_status.html", caller, "station", view=view, flash=done, **context
+        request,
+        "_station_status.html",
+        caller,
+        "station",
+        view=view,
+        flash=done,
+        restart_oob=restart_oob,
+        **context,
     )
 
 
@@ -97,14 +109,19 @@ async def cancel_intention(
 async def enter_restart(
     request: Request, caller: Controller, live: LiveDep, reason: Reason = ""
 ) -> Response:
+    state = live.view.state
+    if state.restart_mode:  # entering again would replace who entered it and why
+        by = f" by {state.restart_user}" if state.restart_user else ""
+        why = f" ({state.restart_reason})" if state.restart_reason else ""
+        raise HTTPException(409, f"The station is already in restart mode{why}{by}.")
     action = EnterRestart(user=caller.name, reason=required(reason, "a reason for restart mode"))
-    return await control(request, caller, live, action, "Restart mode entered.")
+    return await control(request, caller, live, action, "Restart mode entered.", True)
 
 
 @router.post("/station/restart/leave")
 async def leave_restart(request: Request, caller: Controller, live: LiveDep) -> Response:
     action = LeaveRestart(user=caller.name)
-    return await control(request, caller, live, action, "Restart mode left.")
+    return await control(request, caller, live, action, "Restart mode left.", True)
 
 
 @router.post("/station/operations/reset")

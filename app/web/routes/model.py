@@ -50,7 +50,7 @@ def model_page(
     caller: Caller,
     srv: Server,
     text: str,
-    shown: str,
+    editing: int,
     status_code: int = 200,
     **extra: Any,
 ) -> Response:
@@ -62,7 +62,7 @@ def model_page(
         view=srv.live.view,
         status_code=status_code,
         text=text,
-        shown=shown,
+        editing=editing,
         **versions_context(srv),
         busy=srv.live.busy(),
         **extra,
@@ -77,10 +77,10 @@ def model_editor(
     version: Annotated[int | None, Query(ge=1, le=MAX_VERSION)] = None,
 ) -> Response:
     if version is None:
-        text, shown = srv.live.model.text, f"version {srv.live.model.number} (active)"
+        text, editing = srv.live.model.text, srv.live.model.number
     else:
-        text, shown = model_editing.stored(srv, version).text, f"version {version}"
-    return model_page(request, caller, srv, text, shown)
+        text, editing = model_editing.stored(srv, version).text, version
+    return model_page(request, caller, srv, text, editing)
 
 
 @router.post(
@@ -107,15 +107,19 @@ def save_model(
     srv: ServerDep,
     text: Text = "",
     note: Annotated[str, Form(max_length=NOTE_CHARS)] = "",
+    based_on: Annotated[int, Form(ge=0, le=MAX_VERSION)] = 0,
 ) -> Response:
+    """Save as the next version; text identical to the version it was based on is not
+    saved again, and the answer says so (an information, not a refusal)."""
+    same = model_editing.unchanged(srv, text, based_on or None)
+    if same is not None:
+        return nothing_changed(request, caller, srv, same)
     row, found = model_editing.save(srv, text, caller.name, note.strip())
     view = srv.live.view
     if row is None:
         message = f"Not saved: the model has {len(found)} problem{'' if len(found) == 1 else 's'}."
         if not htmx(request):
-            return model_page(
-                request, caller, srv, text, "unsaved text", 422, problems=found, error=message
-            )
+            return model_page(request, caller, srv, text, 0, 422, problems=found, error=message)
         headers = {"HX-Retarget": "#model-errors", "HX-Reswap": "outerHTML"}
         return render(
             request,
@@ -140,6 +144,26 @@ def save_model(
         flash=f"Saved as version {row.number}; activate it to run it.",
         problems=[],
         clear_errors=True,
+        editing=row.number,
+        editing_oob=True,
+        **versions_context(srv),
+        busy=srv.live.busy(),
+    )
+
+
+def nothing_changed(request: Request, caller: Caller, srv: Server, same: int) -> Response:
+    """The text is that of version `same`: nothing saved, said as a message."""
+    message = f"Nothing changed: the text is that of version {same}; no new version was saved."
+    if not htmx(request):
+        return outcomes.done(request, f"/model?version={same}", message)
+    return render(
+        request,
+        "_model_versions.html",
+        caller,
+        "model",
+        view=srv.live.view,
+        flash=message,
+        editing=same,
         **versions_context(srv),
         busy=srv.live.busy(),
     )
@@ -160,8 +184,7 @@ def model_diff(
     context: dict[str, Any] = {"diff": lines, "diff_version": version, "diff_active": active.number}
     if htmx(request):
         return render(request, "_model_diff.html", caller, "model", view=srv.live.view, **context)
-    shown = f"version {active.number} (active)"
-    return model_page(request, caller, srv, active.text, shown, **context)
+    return model_page(request, caller, srv, active.text, active.number, **context)
 
 
 @router.post("/model/activate")
@@ -170,10 +193,17 @@ async def activate_model(
     caller: Activator,
     srv: ServerDep,
     version: Annotated[int, Form(ge=1, le=MAX_VERSION)],
+    editing: Annotated[int, Form(ge=0, le=MAX_VERSION)] = 0,
 ) -> Response:
+    """Activate; htmx gets the versions, and out of band the heading (which text the editor
+    holds, which version runs) and the diff of the version that ran before to the new one."""
+    before = srv.live.model
     await model_editing.activate(srv, version, caller.name)
     if not htmx(request):
         return outcomes.done(request, "/model", f"Version {version} is active now.")
+    lines = model_editing.diff(
+        srv.live.model.text, before.text, f"version {version} (active)", f"version {before.number}"
+    )
     return render(
         request,
         "_model_versions.html",
@@ -182,6 +212,11 @@ async def activate_model(
         view=srv.live.view,
         flash=f"Version {version} is active now.",
         activated=True,
+        editing=editing,
+        editing_oob=True,
+        diff=lines,
+        diff_version=before.number,
+        diff_active=version,
         **versions_context(srv),
         busy=srv.live.busy(),
     )

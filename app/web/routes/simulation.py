@@ -43,7 +43,29 @@ def fault_text(fault: ScheduledFault, words: Wording) -> str:
     return text
 
 
-def experiments_context(experiments: Experiments, words: Wording) -> dict[str, Any]:
+def running_words(view: StationView) -> str:
+    """The run going on now, in words ("" if none): what playing an experiment drops."""
+    busy = view.state.busy_intentions()
+    if not busy:
+        return ""
+    words = view.model.words
+    return ", ".join(words.intention(name) for name in busy)
+
+
+def play_question(title: str, view: StationView, emulated: bool) -> str:
+    """What Play asks first: the run it drops, if one is going, then the start it puts."""
+    back = "emulated devices are put" if emulated else "simulated station is reset"
+    ask = f"Play {title}? The {back} back to the experiment's start."
+    running = running_words(view)
+    if running:
+        ask = f"A run is going ({running}): playing drops it. {ask}"
+    return ask
+
+
+def experiments_context(
+    experiments: Experiments, view: StationView, emulated: bool
+) -> dict[str, Any]:
+    words = view.model.words
     rows = []
     for key, (title, scenario) in sorted(experiments.items()):
         expect = scenario.expect
@@ -57,9 +79,10 @@ def experiments_context(experiments: Experiments, words: Wording) -> dict[str, A
                 "recovery": [recovery_words(str(r)) for r in expect.get("recovery") or ()],
                 "recovery_labels": [str(r) for r in expect.get("recovery") or ()],
                 "operator": [words.text(str(o)) for o in expect.get("operator") or ()],
+                "confirm": play_question(words.text(title), view, emulated),
             }
         )
-    return {"experiments": rows}
+    return {"experiments": rows, "running_now": running_words(view)}
 
 
 def simulation_status(experiments: Experiments, view: StationView) -> dict[str, Any]:
@@ -86,7 +109,40 @@ def simulation_page(request: Request, caller: Simulator, srv: ServerDep) -> Resp
         caller,
         "simulation",
         view=view,
-        **experiments_context(srv.experiments, srv.live.view.model.words),
+        **experiments_context(srv.experiments, view, srv.live.on_emulators),
+        **simulation_status(srv.experiments, view),
+    )
+
+
+@router.get("/simulation/fragments/experiments")
+def experiments_fragment(request: Request, caller: Simulator, srv: ServerDep) -> Response:
+    """The experiments, live: Play says the run it would drop while one is going."""
+    view = simulated(srv.live)
+    context = experiments_context(srv.experiments, view, srv.live.on_emulators)
+    return live_fragment(
+        request, "_simulation_experiments.html", caller, "simulation", view=view, **context
+    )
+
+
+@router.post("/simulation/devices/put-back")
+async def put_devices_back(request: Request, caller: Simulator, srv: ServerDep) -> Response:
+    """The emulated devices out of the faults an experiment left (audited with the user);
+    409 on a simulated world or real devices."""
+    simulated(srv.live)
+    names = await answer(srv.live.put_devices_back(caller.name))
+    words = srv.live.view.model.words
+    named = ", ".join(words.resource(n) for n in names) or "no device"
+    done = f"Devices put back where they are, out of their faults: {named}."
+    if not htmx(request):
+        return outcomes.done(request, "/simulation", done)
+    view = srv.live.view
+    return render(
+        request,
+        "_simulation_status.html",
+        caller,
+        "simulation",
+        view=view,
+        flash=done,
         **simulation_status(srv.experiments, view),
     )
 

@@ -12,7 +12,6 @@ details and to the timeline (app.web.routes.timeline).  Pages are built from one
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
 from datetime import datetime
 from typing import Annotated, Any
 
@@ -20,6 +19,7 @@ from fastapi import APIRouter, Query, Request
 from fastapi.responses import Response
 
 from app.pages import station_rows
+from app.pages.activity import ResourceActivity, resource_activities
 from app.pages.plans import operation_plan, transition_plan
 from app.station.view import StationView
 from app.web.actions import known
@@ -29,7 +29,9 @@ from app.web.pages import live_fragment, render
 from planner.model.expressions import Value, format_value
 from planner.planning.query import PlanStatus
 from planner.runner import Event, EventKind, IntentionState, PlanLevel, ReplanReason
-from planner.runner.waiting import waiting_for
+from planner.runner.state import RunnerState
+from planner.runner.vocabulary import RestartMove
+from planner.runner.waiting import Waiting, waiting_for
 from planner.words import replan_words, sentence
 
 router = APIRouter(include_in_schema=False)
@@ -41,48 +43,57 @@ PLANNERS: dict[str, str] = {
 }
 
 
-@dataclass(frozen=True)
-class ResourceRow:
-    name: str
-    label: str
-    available: bool
-    silent: int  # seconds without an answer
-    doing: str  # what it does now, in words ("" if nothing)
-    # it answers but cannot act (a protective stop), and what a person must do ("" if not)
-    cannot_act: str = ""
+def progress_words(state: RunnerState) -> str:
+    """Operations done in this run (before a replan too) of done plus what the current
+    plan still has: "11 of 11 operations done" at the end, never a count that restarts."""
+    done = len(state.run_finished)
+    plan = state.operation_plan
+    left = len(plan.steps) - len(plan.finished) if plan is not None else 0
+    if plan is None and not done:
+        return ""
+    return f"{done} of {done + left} operation{'' if done + left == 1 else 's'} done"
+
+
+def queued_intentions(view: StationView) -> list[dict[str, str]]:
+    """Intentions started (or allowed to start) that wait: for the station to be free, for
+    restart mode to end, or for their precondition (`RunnerState.auto_start`)."""
+    s, words, runner = view.state, view.model.words, view.runner
+    busy = s.busy_intentions()
+    out = []
+    for intention in view.model.station.intentions:
+        name = intention.name
+        if name not in s.auto_start or s.intentions.get(name) is not IntentionState.INITIAL:
+            continue
+        if s.restart_mode:
+            why = "restart mode: it starts once restart mode is left"
+        elif busy:
+            doing = ", ".join(words.intention(n) for n in busy)
+            why = f"the station is busy with {doing}"
+        else:
+            why = station_rows.unmet(intention.precondition, s.values, runner.holds, words)
+            why = f"needs {why}" if why else "starts in the next round"
+        out.append({"name": name, "label": sentence(words.intention(name)), "why": why})
+    return out
+
+
+def activities(view: StationView) -> tuple[list[ResourceActivity], list[Waiting]]:
+    s = view.state
+    waits = waiting_for(view.runner, s)
+    rows = resource_activities(view.model.station, s, waits, view.now, view.model.words)
+    return rows, waits
 
 
 def overview_context(view: StationView) -> dict[str, Any]:
     """What the overview shows: one consistent round."""
     s, station, words = view.state, view.model.station, view.model.words
-    doing: dict[str, str] = {}
-    for followed in (s.recovery, s.maintenance, s.transition_plan):
-        if followed is None:
-            continue
-        for k in sorted(followed.taken - followed.done):
-            transition = followed.blocks[k].transition
-            doing.setdefault(station.owner_of(transition), words.transition(transition))
-    resources = [
-        ResourceRow(
-            r.name,
-            sentence(words.resource(r.name)),
-            r.name not in s.unavailable,
-            int(view.now - s.last_heard.get(r.name, view.now)),
-            doing.get(r.name, ""),
-            sentence(words.text(s.cannot_act[r.name])) if r.name in s.cannot_act else "",
-        )
-        for r in station.resources
-    ]
-    progress = ""
-    if s.operation_plan is not None:
-        finished, steps = len(s.operation_plan.finished), len(s.operation_plan.steps)
-        progress = f"{finished} of {steps} operations done"
-    waits = [(str(w.who), sentence(words.text(w.what))) for w in waiting_for(view.runner, s)]
+    resources, found = activities(view)
+    waits = [(str(w.who), sentence(words.text(w.what))) for w in found]
     return {
         "intentions": station_rows.intention_rows(station, s, words, view.runner.holds),
-        "progress": progress,
+        "progress": progress_words(s),
         "running": [sentence(words.operation(n)) for n in s.executing()],
         "resources": resources,
+        "queued": queued_intentions(view),
         "waits": waits,
         "restart": s.restart_mode,
         "forbidden": [words.specification(n) for n in sorted(s.relaxed)]
@@ -123,15 +134,9 @@ def status_context(view: StationView) -> dict[str, Any]:
         "restart": s.restart_mode,
         "restart_reason": s.restart_reason if s.restart_mode else "",
         "restart_user": s.restart_user if s.restart_mode else "",
-        "resources": [
-            {
-                "name": r.name,
-                "label": sentence(words.resource(r.name)),
-                "unavailable": r.name in s.unavailable,
-                "silent": int(view.now - s.last_heard.get(r.name, view.now)),
-            }
-            for r in station.resources
-        ],
+        "restart_since": restart_since(view),
+        "resources": activities(view)[0],
+        "queued": queued_intentions(view),
         "devices": view.devices,
         "intentions": station_rows.intention_rows(station, s, words, view.runner.holds),
         "operations": station_rows.operation_rows(station, s, words),
@@ -143,6 +148,23 @@ def status_context(view: StationView) -> dict[str, Any]:
         "halted": s.halted,
         "retries": view.runner.config.retries,
     }
+
+
+def restart_since(view: StationView) -> str:
+    """When restart mode was entered, as a time of day ("" if not in it, or if the event
+    is older than the events a view keeps)."""
+    if not view.state.restart_mode:
+        return ""
+    for event in reversed(view.events):
+        if event.kind is EventKind.RESTART and event.subject == RestartMove.ENTERED:
+            return wall_clock(view, event.time)
+    return ""
+
+
+def wall_clock(view: StationView, at: float) -> str:
+    """A time of the station's clock as the time of day."""
+    wall = time.time() - (view.now - at)
+    return datetime.fromtimestamp(wall).astimezone().strftime("%H:%M:%S")
 
 
 def plans_context(view: StationView) -> dict[str, Any]:
@@ -211,14 +233,13 @@ def planning_row(view: StationView, event: Event) -> dict[str, Any]:
     found = detail.get("status") == PlanStatus.FOUND.value
     result = "found" + (f", {steps(int(detail['length']))}" if "length" in detail else "")
     operation = str(detail.get("operation", ""))
-    wall = time.time() - (view.now - event.time)
     return {
         "planner": PLANNERS.get(str(detail.get("level", "")), "planner")
         + (f" for {words.operation(operation)}" if operation else ""),
         "why": replan_words(str(detail.get("reason", ""))),
         "result": result if found else f"no plan ({words.text(str(detail.get('status', '')))})",
         "found": found,
-        "at": datetime.fromtimestamp(wall).astimezone().strftime("%H:%M:%S"),
+        "at": wall_clock(view, event.time),
         "millis": event.millis,
     }
 

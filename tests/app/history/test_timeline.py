@@ -205,3 +205,56 @@ def test_bars_of_one_lane_never_overlap_and_time_lost_is_counted_once(
         most, together = drawn.at_once
         assert 0 <= together <= run.cycle_time + 1e-6 and (most >= 2 or together == 0)
         ElementTree.fromstring(str(timeline_drawing.draw(drawn, "random")))
+
+
+# -- issue 29: outages at a run's start, routine cards, one cause for people -----------------
+
+
+def _run_of(found: list[Happening]) -> Run:
+    return Run(found[0].key, found[-1].key, 10.0, 40.0, ("tighten_bolts",), Outcome.FINISHED)
+
+
+def test_an_outage_that_ended_before_the_run_is_not_its_own_and_one_across_its_start_counts_from_it(
+    demo: Station,
+) -> None:
+    ended = [
+        Happening(5.0, "unavailable", "r2", {"silent_for": 2.0}, key=1),
+        Happening(8.0, "available", "r2", {}, key=2),
+        Happening(10.0, "intention", "tighten_bolts", {"before": "i", "after": "e"}, key=3),
+        Happening(40.0, "intention", "tighten_bolts", {"before": "e", "after": "f"}, key=4),
+    ]
+    drawn = timeline(ended, demo, _run_of(ended))
+    assert drawn.losses == ()
+    assert [b for b in drawn.bars if b.lane == "r2"] == []
+    assert drawn.marks == ()  # nothing of the run before
+
+    across = [
+        Happening(5.0, "unavailable", "r2", {"silent_for": 2.0}, key=1),
+        Happening(10.0, "intention", "tighten_bolts", {"before": "i", "after": "e"}, key=2),
+        Happening(16.0, "available", "r2", {}, key=3),
+        Happening(40.0, "intention", "tighten_bolts", {"before": "e", "after": "f"}, key=4),
+    ]
+    drawn = timeline(across, demo, _run_of(across))
+    assert [(loss.cause, loss.seconds) for loss in drawn.losses] == [
+        ("robot 2 stopped answering", 6.0)
+    ]
+
+
+def test_a_long_wait_on_a_routine_card_is_time_lost_waiting_for_a_person(demo: Station) -> None:
+    """The operator took 105 s to place a bolt pair: reminded, the whole wait is lost; a
+    maintenance step waits under the same cause, whoever it is for."""
+    card = "operator.confirm"
+    found = [
+        Happening(10.0, "intention", "tighten_bolts", {"before": "i", "after": "e"}, key=1),
+        Happening(45.0, "reminder", card, {"waited": 30.0}, key=2),
+        Happening(75.0, "reminder", card, {"waited": 60.0}, key=3),
+        Happening(120.0, "effect", card, {"type": "effect"}, key=4),
+        Happening(130.0, "instruction", "operator.move_r2_home", {}, key=5),
+        Happening(140.0, "operator", "done", {"transition": "operator.move_r2_home"}, key=6),
+        Happening(150.0, "intention", "tighten_bolts", {"before": "e", "after": "f"}, key=7),
+    ]
+    run = Run(1, 7, 10.0, 150.0, ("tighten_bolts",), Outcome.FINISHED)
+    drawn = timeline(found, demo, run)
+    assert [(loss.cause, loss.seconds) for loss in drawn.losses] == [
+        ("waiting for a person", 115.0)
+    ]

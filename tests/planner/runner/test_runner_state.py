@@ -58,6 +58,7 @@ def _filled() -> RunnerState:
         restart_user="engineer",
         resetting={"tighten"},
         auto_start={"assemble"},
+        run_finished=("tighten",),
         next_background_check=1.0,
         replan_operations=ReplanReason.RESET,
         replan_transitions=ReplanReason.RESET,
