@@ -185,6 +185,14 @@ ROUTES = [
         reached=303,
         says="no such recovery step",
     ),
+    Route(
+        "POST",
+        "/tasks/approve-plan",
+        needs(TASKS),
+        form={"steps": "no.such_step"},
+        reached=303,
+        says="no recovery plan",
+    ),
     Route("GET", "/alarms", needs(ALARMS), says="<h1"),
     Route("GET", "/fragments/alarms", needs(ALARMS)),
     Route(
@@ -380,6 +388,14 @@ ROUTES = [
         json={"decision": "approve"},
         reached=409,
         says="no such recovery step",
+    ),
+    Route(
+        "POST",
+        "/api/recovery-plan",
+        needs(TASKS),
+        json={"decision": "approve", "steps": ["no.such_step"]},
+        reached=409,
+        says="no recovery plan",
     ),
     Route(
         "POST",

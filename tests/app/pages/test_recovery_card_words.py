@@ -19,14 +19,16 @@ def test_the_recovery_cards_words_name_no_model_identifier() -> None:
 
 
 def test_a_simulation_card_leads_with_plain_words_and_keeps_the_table_1_label_aside() -> None:
+    """The words the simulation card shows for each recovery type (app.web.routes.simulation
+    puts them first and the Table 1 label aside)."""
     from app.station.scenario import load_scenario
-    from app.web.routes.simulation import experiments_context
-    from planner.words import Wording
+    from planner.words import recovery_words
 
     station, _ = plays.demo()
     path = plays.scenario_path("e7_r2_disconnects_holding_tool")
     scenario = load_scenario(path.read_text(), str(path), station)
-    [row] = experiments_context({"e7": ("E7", scenario)}, Wording(station))["experiments"]
-    assert row["recovery_labels"] == ["TP w/RTO", "OP w/DO", "TP w/MT"]
-    assert row["recovery"][0].startswith("the machines' steps planned again without")
-    assert not [r for r in row["recovery"] if "w/" in r]
+    labels = [str(r) for r in scenario.expect["recovery"]]
+    assert labels == ["TP w/RTO", "OP w/DO", "TP w/MT"]
+    said = [recovery_words(label) for label in labels]
+    assert said[0].startswith("the machines' steps planned again without")
+    assert not [r for r in said if "w/" in r]
