@@ -193,6 +193,8 @@ def test_a_card_the_station_reminded_of_vibrates_a_reminder(
     overdue = watch.page.locator("#tasks section.card[data-overdue='true']")
     overdue.wait_for()
     assert overdue.locator("[data-testid=overdue]").is_visible()
+    box = overdue.locator(".card-actions button").first.bounding_box()
+    assert box and box["y"] + box["height"] <= 320, box  # still on the watch's screen
     watch.page.wait_for_function(
         "p => window.__vibrations.some((v) => JSON.stringify(v) === JSON.stringify(p))",
         arg=OVERDUE,

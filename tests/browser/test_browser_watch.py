@@ -404,6 +404,16 @@ def test_e6_cause_card_on_the_watch(station: RunningStation, devices: dict[str, 
     assert done and all(b and b["y"] + b["height"] <= done["y"] for b in above), (above, done)
     assert_usable(watch)  # Done still on the 320 x 320 screen
     screenshot(watch.page, "watch-e6-cause.png")
+    # the connection drops: the banner says so, over the top bar, and Done stays on the screen
+    watch.context.set_offline(True)
+    watch.page.locator("#offline").wait_for(state="visible")
+    banner = watch.page.locator("#offline").bounding_box()
+    card = watch.page.locator("#tasks section.card").bounding_box()
+    screenshot(watch.page, "watch-offline-card.png")
+    assert banner and card and banner["y"] + banner["height"] <= card["y"], (banner, card)
+    assert_usable(watch)
+    watch.context.set_offline(False)
+    watch.page.locator("#offline").wait_for(state="hidden")
     work(station, devices, intentions)
 
 

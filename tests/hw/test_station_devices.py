@@ -32,7 +32,9 @@ from tests.support.paths import REPOSITORY
 ROOT = REPOSITORY
 MODEL = ROOT / "models" / "demo_station.yaml"
 DEVICES = ROOT / "models" / "demo_station.devices.yaml"
-CONFIG = RunnerConfig(heartbeat_timeout=1.0, auto_intentions=frozenset())
+# the runner's heartbeat time-out above the drivers' own 1 s: which of them speaks first is then
+# the design's order, not the scheduler's (test_a_robot_its_driver_calls_silent_...)
+CONFIG = RunnerConfig(heartbeat_timeout=3.0, auto_intentions=frozenset())
 PERIOD = 0.1
 
 
@@ -80,11 +82,15 @@ def test_a_cut_device_is_unavailable_and_back_when_it_answers(
     state = lambda: running.cycle.state  # noqa: E731
     running.run_until(lambda: not state().unavailable, 30.0)
     running.emulated.devices.inject(Fault(FaultKind.DISCONNECT, resource=resource))
-    running.run_until(lambda: resource in state().unavailable, 30.0)
-    assert state().unavailable == {resource}  # the others carry on
-    link = running.emulated.devices.links()[resource]
-    assert not link.connected and link.error
-    running.emulated.devices.inject(Fault(FaultKind.RECONNECT, resource=resource))
+    try:
+        running.run_until(lambda: resource in state().unavailable, 30.0)
+        # the others carry on: on a busy machine one may miss a 1 s heartbeat and be back
+        # a tick later, so what is asserted is that only the cut one stays unavailable
+        running.run_until(lambda: state().unavailable == {resource}, 30.0)
+        link = running.emulated.devices.links()[resource]
+        assert not link.connected and link.error
+    finally:  # the next test starts from a whole station even when this one failed
+        running.emulated.devices.inject(Fault(FaultKind.RECONNECT, resource=resource))
     running.run_until(lambda: resource not in state().unavailable, 30.0)
     assert running.emulated.devices.links()[resource].connected
 
@@ -95,12 +101,14 @@ def test_a_device_that_talks_nonsense_is_not_trusted(running: Running, kind: str
     state = lambda: running.cycle.state  # noqa: E731
     running.run_until(lambda: not state().unavailable, 30.0)
     running.emulated.world.request("nr", {"op": "garbage", "count": 1000, "kind": kind})
-    running.run_until(lambda: "nr" in state().unavailable, 30.0)
-    assert state().unavailable == {"nr"}  # the others carry on
-    assert "nr" not in running.emulated.devices.read().heartbeats
-    if kind == "other_unit":
-        assert "an answer from unit 2, not 1" in running.emulated.devices.links()["nr"].error
-    running.emulated.world.request("nr", {"op": "reset"})
+    try:
+        running.run_until(lambda: "nr" in state().unavailable, 30.0)
+        running.run_until(lambda: state().unavailable == {"nr"}, 30.0)  # the others carry on
+        assert "nr" not in running.emulated.devices.read().heartbeats
+        if kind == "other_unit":
+            assert "an answer from unit 2, not 1" in running.emulated.devices.links()["nr"].error
+    finally:
+        running.emulated.world.request("nr", {"op": "reset"})
     running.run_until(lambda: "nr" not in state().unavailable, 30.0)
 
 
@@ -118,10 +126,11 @@ def test_a_silent_plc_makes_what_it_reports_stale_until_it_answers(running: Runn
     running.run_until(lambda: not state().unavailable and not state().stale, 30.0)
     wired = {w.variable for d in running.devices.devices if d.name == "plc" for w in d.wires}
     running.emulated.world.request("plc", {"op": "network", "mode": "refuse"})
-    running.run_until(lambda: bool(state().stale), 30.0)
-    assert set(state().stale) == wired and not state().unavailable
-    assert all(why.startswith("plc does not answer: ") for why in state().stale.values())
-    running.emulated.world.request("plc", {"op": "network", "mode": "up"})
+    try:
+        running.run_until(lambda: set(state().stale) == wired and not state().unavailable, 30.0)
+        assert all(why.startswith("plc does not answer: ") for why in state().stale.values())
+    finally:
+        running.emulated.world.request("plc", {"op": "network", "mode": "up"})
     running.run_until(lambda: not state().stale, 30.0)
 
 
