@@ -8,7 +8,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import StrEnum
 
-from app.pages.recovery_plan import headline, plan_steps, resource_place
+from app.pages.recovery_plan import headline, kept_out_words, plan_steps, resource_place
 from app.station.view import StationView
 from planner.model.flat import TransitionKind
 from planner.model.watch import IDLE
@@ -359,18 +359,21 @@ def first_cause(view: StationView) -> str:
     values = view.state.values
     for e in events[start:]:
         if e.kind in _CAUSES:
-            where = ""
-            if e.kind is EventKind.UNAVAILABLE:  # where it stopped: its last known place
+            where = also = ""
+            if e.kind is EventKind.UNAVAILABLE:  # where it stopped, and whom it keeps out
                 where = resource_place(view, e.subject, values.__getitem__)
-            return cause_words(view.model.words, e, where)
+                also = kept_out_words(view, e.subject, values.__getitem__)
+            return cause_words(view.model.words, e, where, also)
     return ""
 
 
-def cause_words(words: Wording, event: Event, where: str = "") -> str:
-    """One cause event as a sentence for a person."""
+def cause_words(words: Wording, event: Event, where: str = "", also: str = "") -> str:
+    """One cause event as a sentence for a person; `also`, what follows from it for the
+    others ("robot 1 cannot go there")."""
     if event.kind is EventKind.UNAVAILABLE:
         at = f" {where}" if where else ""
-        return sentence(f"{words.resource(event.subject)} stopped answering{at}.")
+        then = f"; {also}" if also else ""
+        return sentence(f"{words.resource(event.subject)} stopped answering{at}{then}.")
     if event.kind is EventKind.TIMEOUT:
         return sentence(f"{words.step(event.subject)}: did not happen in time.")
     if event.detail.get("why") == "a different effect":

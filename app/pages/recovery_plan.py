@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from app.station.view import StationView
 from planner.model.expressions import Value
 from planner.model.flat import VariableKind
+from planner.model.kept_out import kept_out
 from planner.model.semantics import State
 from planner.runner import TransitionPlan
 from planner.runner.forbidden import numbered
@@ -115,6 +116,33 @@ def _place_variable(view: StationView, owner: str) -> str:
         if mine and words.variable(variable.name) == words.resource(owner):
             return variable.name
     return ""
+
+
+def kept_out_words(view: StationView, owner: str, value_of: Callable[[str], Value]) -> str:
+    """What a resource stopped where it was last seen keeps the others out of, in words:
+    "robot 1 cannot go there" when its own place is among the places forbidden to them
+    (`planner.model.kept_out`), else the places ("robot 1 cannot be where the nutrunner
+    hangs"); "" when the specifications forbid the others nothing because of it."""
+    station = view.model.station
+    stopped = next((r for r in station.resources if r.name == owner), None)
+    if stopped is None:
+        return ""
+    words = view.model.words
+    fixed = {name: value_of(name) for name in stopped.variables}
+    places = {r.name: _place_variable(view, r.name) for r in station.resources if r is not stopped}
+    forbidden = kept_out(station.model, fixed, [v for v in places.values() if v])
+    here = fixed.get(_place_variable(view, owner))
+    there, elsewhere = [], {}
+    for other, variable in places.items():
+        values = forbidden.get(variable, ())
+        if here in values:
+            there.append(words.resource(other))
+        elif values:
+            names = [words.value_name(variable, v) for v in values]
+            elsewhere[words.resource(other)] = " or ".join(names)
+    said = [f"{' and '.join(there)} cannot go there"] if there else []
+    said += [f"{who} cannot be {where}" for who, where in elsewhere.items()]
+    return "; ".join(said)
 
 
 def headline(words: Wording, steps: list[PlanStep]) -> str:

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import asyncio
 from concurrent.futures import Future
-from typing import TypeVar
+from typing import Literal, TypeVar
 
 from fastapi import HTTPException
 
@@ -17,7 +17,7 @@ from app.pages.cards import CardKind, task_cards
 from app.station.live import LiveStation, StationError
 from planner.model.flat import TransitionKind, VariableKind
 from planner.reading.yaml_reader import closest
-from planner.runner import Action, Event
+from planner.runner import Action, Approve, ApprovePlan, Event, Reject, RejectPlan
 
 T = TypeVar("T")
 ANSWER_SECONDS = 30.0
@@ -93,3 +93,20 @@ def maintenance_step(live: LiveStation, transition: str) -> str:
     if transition not in asked:
         raise StationError(f"{transition}: not a maintenance step asked for now")
     return transition
+
+
+Decision = Literal["approve", "reject"]  # a person's answer to an approval card
+
+
+def step_decision(user: str, step: int, decision: Decision) -> Approve | Reject:
+    """One recovery step approved or rejected (the card's per-step way, and the API's)."""
+    return Approve(user=user, step=step) if decision == "approve" else Reject(user=user, step=step)
+
+
+def plan_decision(
+    user: str, steps: tuple[str, ...], decision: Decision
+) -> ApprovePlan | RejectPlan:
+    """The whole recovery plan approved or rejected, its steps as the card showed them."""
+    if decision == "approve":
+        return ApprovePlan(user=user, steps=steps)
+    return RejectPlan(user=user, steps=steps)

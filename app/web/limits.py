@@ -7,6 +7,10 @@ column that keeps them (app.store.tables) or to what a person can usefully type.
 
 from __future__ import annotations
 
+from typing import Annotated
+
+from pydantic import StringConstraints
+
 BODY_BYTES = 1024 * 1024  # a request body past this is refused (413) before it is parsed
 
 MAX_MODEL_CHARS = 2_000_000
@@ -27,6 +31,8 @@ CONFIRM_CHARS = 20  # a form's confirmation flag
 CARD_CHARS = 100  # a command card's value
 MAX_STEP = 10_000  # a recovery plan's step
 MAX_PLAN_STEPS = 1_000  # the steps of a recovery plan approved at once
+# a step of a recovery plan, as the approval card names it (the form's and the API's)
+StepName = Annotated[str, StringConstraints(min_length=1, max_length=NAME_CHARS)]
 KEY_CHARS = 200  # an alarm's key, as the store keeps it (AlarmRecord.key)
 MOST_KEYS = 1000  # alarms one "acknowledge all" may name
 SHELVE_MINUTES = 480  # the alarm page's shelve (the API's: app.station.alarms.SHELVE_LIMIT)

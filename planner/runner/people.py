@@ -84,31 +84,29 @@ def approve_or_reject(tick: Tick, action: Approve | Reject) -> Reply:
         return tick.refuse(action, f"step {step}", "that step has not been asked for yet")
     transition = plan.blocks[step].transition
     number, of = numbered(tick.index, plan, step)  # as the screen numbers it, for the audit
-    if isinstance(action, Reject):
-        tick.emit(
-            EventKind.OPERATOR,
-            PersonAct.REJECT,
-            user=action.user,
-            step=step,
-            transition=transition,
-            number=number,
-            of=of,
-        )
-        state.recovery = None  # plan again, without the rejected step
-        state.relaxed = frozenset()
-        state.rejected.add(transition)
-        return Reply.accept(action)
-    plan.approved.add(step)
+    act = PersonAct.REJECT if isinstance(action, Reject) else PersonAct.APPROVE
     tick.emit(
         EventKind.OPERATOR,
-        PersonAct.APPROVE,
+        act,
         user=action.user,
         step=step,
         transition=transition,
         number=number,
         of=of,
     )
+    if isinstance(action, Reject):
+        _drop_recovery(tick, (transition,))
+    else:
+        plan.approved.add(step)
     return Reply.accept(action)
+
+
+def _drop_recovery(tick: Tick, rejected: tuple[str, ...]) -> None:
+    """A person refused these machine steps: the plan is dropped and planned again without
+    them (the specifications it relaxed hold again)."""
+    tick.state.recovery = None
+    tick.state.relaxed = frozenset()
+    tick.state.rejected.update(rejected)
 
 
 def decide_plan(tick: Tick, action: ApprovePlan | RejectPlan) -> Reply:
@@ -138,9 +136,7 @@ def decide_plan(tick: Tick, action: ApprovePlan | RejectPlan) -> Reply:
         of=of,
     )
     if isinstance(action, RejectPlan):
-        state.recovery = None  # plan again, without any of its machine steps
-        state.relaxed = frozenset()
-        state.rejected.update(shown)
+        _drop_recovery(tick, shown)  # plan again, without any of its machine steps
     else:
         plan.approved.update(steps)
     return Reply.accept(action)

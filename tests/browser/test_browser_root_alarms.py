@@ -7,7 +7,6 @@ tests/screenshots/operator-watch-root-alarm.png."""
 
 from __future__ import annotations
 
-import json
 from collections.abc import Iterator
 from typing import Any
 
@@ -17,7 +16,7 @@ import pytest
 from tests.browser.test_browser_operator import WATCH, sign_in_first_time
 from tests.support.paths import SCREENSHOTS
 from tests.support.stations import RunningStation, form_token, sign_in_with_forms, start_station
-from tests.web.test_web_alarms import alarm_records, work_through
+from tests.web.test_web_alarms import alarm_records, raised_since, work_through
 
 EXPERIMENTS = {
     # experiment: (its root alarm, words of a consequence listed under it)
@@ -42,16 +41,6 @@ def watch(browser: Any, station: RunningStation) -> Iterator[Any]:
     station.changed.add("operator")
     yield page
     page.context.close()
-
-
-def raised_since(station: RunningStation, before: int) -> list[str]:
-    """The alarm keys raised after the first `before` alarm records, first out first."""
-    appeared = [
-        r.subject
-        for r in alarm_records(station)[before:]
-        if json.loads(r.detail)["note"] == "condition appeared"
-    ]
-    return list(dict.fromkeys(appeared))
 
 
 @pytest.mark.parametrize("name", list(EXPERIMENTS))

@@ -45,6 +45,16 @@ def alarm_records(station: RunningStation) -> list[AuditRecord]:
         return list(session.scalars(query))
 
 
+def raised_since(station: RunningStation, before: int) -> list[str]:
+    """The alarm keys raised after the first `before` alarm records, first out first."""
+    appeared = [
+        r.subject
+        for r in alarm_records(station)[before:]
+        if json.loads(r.detail)["note"] == "condition appeared"
+    ]
+    return list(dict.fromkeys(appeared))
+
+
 def badge(html: str) -> int:
     found = re.search(r'class="alarm-count__n">(\d+)<', html)
     assert found, "no alarm badge on the page"

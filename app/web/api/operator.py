@@ -3,7 +3,7 @@ step done, a recovery step approved or rejected (permission `tasks`)."""
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated
 
 from fastapi import APIRouter, Path
 from pydantic import BaseModel, Field
@@ -11,19 +11,15 @@ from pydantic import BaseModel, Field
 from app.pages.cards import CardKind, TaskCard, task_cards
 from app.station.live import StationError
 from app.web import actions
-from app.web.actions import answer, perform
+from app.web.actions import Decision, answer, perform, plan_decision, step_decision
 from app.web.api.common import ACT, BEARER, PREFIX, NamePath, acted, errors
 from app.web.api.schemas import ActionAnswer, EventOut, RequestBody, events_out
 from app.web.deps import LiveDep, TasksCaller
-from app.web.limits import CARD_CHARS, MAX_PLAN_STEPS, MAX_STEP, NAME_CHARS
+from app.web.limits import CARD_CHARS, MAX_PLAN_STEPS, MAX_STEP, StepName
 from planner.runner import (
-    Approve,
-    ApprovePlan,
     Event,
     EventKind,
     MaintenanceDone,
-    Reject,
-    RejectPlan,
 )
 from planner.runner.vocabulary import PersonAct
 
@@ -66,12 +62,12 @@ class CardDoneOut(BaseModel):
 
 
 class ApprovalIn(RequestBody):
-    decision: Literal["approve", "reject"]
+    decision: Decision
 
 
 class PlanDecisionIn(RequestBody):
-    decision: Literal["approve", "reject"]
-    steps: list[Annotated[str, Field(min_length=1, max_length=NAME_CHARS)]] = Field(
+    decision: Decision
+    steps: list[StepName] = Field(
         min_length=1,
         max_length=MAX_PLAN_STEPS,
         description="the plan's steps as the approval card lists them (its `plan`)",
@@ -150,10 +146,7 @@ async def approval(
     body: ApprovalIn,
 ) -> ActionAnswer:
     """A rejected step is left out when the station plans the recovery again.  Needs `tasks`."""
-    if body.decision == "approve":
-        action: Approve | Reject = Approve(user=caller.name, step=step)
-    else:
-        action = Reject(user=caller.name, step=step)
+    action = step_decision(caller.name, step, body.decision)
     return acted(await perform(live, action))
 
 
@@ -168,8 +161,5 @@ async def recovery_plan(caller: TasksCaller, live: LiveDep, body: PlanDecisionIn
     asking again; a rejected plan's steps are left out when the station plans again.  409
     when the plan changed since it was shown.  Needs `tasks`."""
     steps = tuple(body.steps)
-    if body.decision == "approve":
-        action: ApprovePlan | RejectPlan = ApprovePlan(user=caller.name, steps=steps)
-    else:
-        action = RejectPlan(user=caller.name, steps=steps)
+    action = plan_decision(caller.name, steps, body.decision)
     return acted(await perform(live, action))

@@ -22,11 +22,18 @@ from app.people.auth import Role
 from app.station.live import LiveStation, StationError
 from app.station.view import StationView
 from app.web import outcomes
-from app.web.actions import answer, maintenance_step, perform
+from app.web.actions import (
+    Decision,
+    answer,
+    maintenance_step,
+    perform,
+    plan_decision,
+    step_decision,
+)
 from app.web.deps import Caller, LiveDep, OptionalCaller, StoreDep, TasksCaller
-from app.web.limits import CARD_CHARS, MAX_PLAN_STEPS, MAX_STEP, NAME_CHARS
+from app.web.limits import CARD_CHARS, MAX_PLAN_STEPS, MAX_STEP, NAME_CHARS, StepName
 from app.web.pages import htmx, render, same_origin_path
-from planner.runner import Approve, ApprovePlan, MaintenanceDone, Reject, RejectPlan
+from planner.runner import MaintenanceDone
 
 router = APIRouter(include_in_schema=False)
 
@@ -124,13 +131,9 @@ async def approve(
     caller: TasksCaller,
     live: LiveDep,
     step: Annotated[int, Form(ge=0, le=MAX_STEP)],
-    decision: Annotated[str, Form(pattern="^(approve|reject)$")] = "approve",
+    decision: Annotated[Decision, Form()] = "approve",
 ) -> Response:
-    action = (
-        Approve(user=caller.name, step=step)
-        if decision == "approve"
-        else Reject(user=caller.name, step=step)
-    )
+    action = step_decision(caller.name, step, decision)
     return await tap(
         request, caller, live, perform(live, action), "Already decided on another device."
     )
@@ -141,19 +144,12 @@ async def approve_plan(
     request: Request,
     caller: TasksCaller,
     live: LiveDep,
-    steps: Annotated[list[str], Form(max_length=MAX_PLAN_STEPS)],
-    decision: Annotated[str, Form(pattern="^(approve|reject)$")] = "approve",
+    steps: Annotated[list[StepName], Form(max_length=MAX_PLAN_STEPS)],
+    decision: Annotated[Decision, Form()] = "approve",
 ) -> Response:
     """The recovery plan approved or rejected in one decision, its steps as the card showed
     them (a plan that changed since is refused: the fresh card comes back)."""
-    if any(len(name) > NAME_CHARS for name in steps):
-        raise HTTPException(422, f"steps: a step name has at most {NAME_CHARS} characters")
-    named = tuple(steps)
-    action = (
-        ApprovePlan(user=caller.name, steps=named)
-        if decision == "approve"
-        else RejectPlan(user=caller.name, steps=named)
-    )
+    action = plan_decision(caller.name, tuple(steps), decision)
     return await tap(
         request, caller, live, perform(live, action), "The plan changed or was decided meanwhile."
     )

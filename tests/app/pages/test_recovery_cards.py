@@ -92,7 +92,7 @@ def test_an_instruction_leads_with_the_cause_and_no_ambiguous_it() -> None:
             break
     else:
         raise AssertionError("E6 asked for no maintenance step")
-    assert card.cause == "Robot 2 stopped answering above the engine."
+    assert card.cause == "Robot 2 stopped answering above the engine; robot 1 cannot go there."
     assert "It stopped" not in card.why and "The station cannot go on with:" in card.why
     assert card.transition == "operator.move_r2_home"
     assert card.safety == "press robot 2's emergency stop and switch it to hand guiding first"
