@@ -154,6 +154,35 @@ def test_the_task_count_is_on_every_page_and_follows_the_cards(
         assert not device.errors, device.errors
 
 
+def test_a_tap_that_went_as_a_plain_form_leaves_the_next_card_in_view(
+    station: RunningStation, devices: dict[str, Device]
+) -> None:
+    """A Done tapped before the page was ready goes as a plain form: the page comes back
+    with "Done." -- over the top bar on the watch, gone after a few seconds -- and the next
+    card where a card always is, its button on the 320 px screen."""
+    watch = devices["watch"]
+    watch.page.goto(station.url + "/")
+    intentions = play(station, "e1_bolt_undone")
+    card = watch.page.locator("#tasks section.card.waits")
+    card.wait_for()
+    top = card.bounding_box()
+    key = watch.page.locator("#tasks .task-now").get_attribute("data-key")
+    with watch.page.expect_navigation():  # form.submit() fires no submit event: no htmx
+        watch.page.evaluate(
+            "() => document.querySelector('#tasks .card-actions button.done-button')"
+            ".closest('form').submit()"
+        )
+    flash = watch.page.locator("main > .flash")
+    assert flash.inner_text().strip() == "Done."
+    watch.page.wait_for_function(
+        "k => document.querySelector('#tasks .task-now')?.dataset.key !== k", arg=key
+    )
+    after = watch.page.locator("#tasks section.card").first.bounding_box()
+    assert top and after and abs(after["y"] - top["y"]) <= 1, (top, after)  # not pushed down
+    flash.wait_for(state="hidden", timeout=10_000)
+    finish_on(watch, station, intentions)
+
+
 def test_tap_to_turn_on_alerts_vibrates_asks_and_says_how_when_blocked(
     browser: Any, station: RunningStation, devices: dict[str, Device]
 ) -> None:
