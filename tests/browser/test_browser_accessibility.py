@@ -74,6 +74,13 @@ def station(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RunningStation
     running.stop()
 
 
+def axe_violations(page: Any) -> list[str]:
+    """axe-core's serious and critical findings on the page as it is now, one line each."""
+    page.evaluate(AXE.read_text(encoding="utf-8"))  # the policy is bypassed: see above
+    found: list[str] = page.evaluate(RUN_AXE)
+    return found
+
+
 @dataclass
 class Audit:
     """The pages checked at one size and the violations found, reported all at once."""
@@ -86,10 +93,9 @@ class Audit:
         page.wait_for_load_state()
         if page.url.endswith("/docs"):
             page.wait_for_selector(".opblock-summary")  # Swagger UI draws the page itself
-        page.evaluate(AXE.read_text(encoding="utf-8"))  # the policy is bypassed: see above
         where = f"{page.url.split('/', 3)[-1] or 'tasks'} ({moment}, {self.size})"
         self.checked.append(where)
-        for violation in page.evaluate(RUN_AXE):
+        for violation in axe_violations(page):
             self.found.append(f"/{where}: {violation}")
 
     def visit(self, page: Any, url: str, moment: str, status: int = 200) -> None:

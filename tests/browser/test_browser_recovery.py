@@ -16,6 +16,7 @@ import pytest
 from playwright.sync_api import TimeoutError as PlaywrightTimeout
 
 from app.pages.cards import task_cards
+from tests.browser.test_browser_accessibility import axe_violations
 from tests.browser.test_browser_watch import (
     CARD,
     INTERNAL,
@@ -73,6 +74,7 @@ def test_after_i_cannot_do_this_the_recovery_is_one_decision_on_the_watch(
             assert cause and button and cause["y"] + cause["height"] <= button["y"], card
             assert re.search(r"\d+ machine steps", card["text"]), card
             assert_usable(watch)  # one card, its buttons inside 320 x 320, targets of 44 px
+            assert not axe_violations(page), axe_violations(page)  # and axe-core clean
             steps = page.locator("#tasks [data-testid=plan-steps]")
             steps.locator("summary").click()  # the steps on demand
             listed = steps.locator("li").all_inner_texts()
