@@ -83,6 +83,12 @@ def test_every_page_counts_the_task_cards_in_its_tab_title_and_event_stream(
             assert re.search(rf"<title>\({count}\) {title} · ", page), (path, page[:600])
             tab = re.findall(r'<span class="nav-count" data-task-count="(\d+)"> \((\d+)\)<', page)
             assert tab and all(a == b == str(count) for a, b in tab), (path, tab)
+    with signed_in(station, "engineer") as engineer:
+        # many pages: on a narrow screen the tabs fold into the Menu, which carries the count
+        page, count = counted(station, engineer, "/station")
+        menu = re.search(r"<summary><span>Menu(.*?)</summary>", page)
+        assert menu and f'data-task-count="{count}"> ({count})<' in menu.group(1), menu
+    with signed_in(station, "operator") as operator, signed_in(station, "auditor") as auditor:
         with operator.stream("GET", "/events") as events:
             badge = first_event(events.iter_lines(), "badge")
         assert badge["tasks"] == len(task_cards(station.live.view)) >= 1, badge
