@@ -222,7 +222,13 @@ def test_a_card_the_station_reminded_of_vibrates_a_reminder(
     overdue = watch.page.locator("#tasks section.card[data-overdue='true']")
     overdue.wait_for()
     assert overdue.locator("[data-testid=overdue]").is_visible()
-    box = overdue.locator(".card-actions button").first.bounding_box()
+    button = overdue.locator(".card-actions button").first
+    box = None
+    for _ in range(20):  # a card being swapped in (the station moved meanwhile) has no box yet
+        button.wait_for()
+        box = button.bounding_box()
+        if box is not None:
+            break
     assert box and box["y"] + box["height"] <= 320, box  # still on the watch's screen
     watch.page.wait_for_function(
         "p => window.__vibrations.some((v) => JSON.stringify(v) === JSON.stringify(p))",
