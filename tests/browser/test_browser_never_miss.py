@@ -86,6 +86,14 @@ def finish_on(watch: Device, station: RunningStation, intentions: tuple[str, ...
         tap(watch, cards[0].key, "Approve" if cards[0].kind is CardKind.APPROVAL else "Done")
 
 
+# the top of the card shown and its key, in one look
+CARD_TOP = """() => {
+  const card = document.querySelector("#tasks section.card");
+  const now = document.querySelector("#tasks .task-now");
+  return [card.getBoundingClientRect().y, now ? now.dataset.key : ""];
+}"""
+
+
 def vibrations(device: Device) -> list[Any]:
     found: list[Any] = device.page.evaluate("window.__vibrations")
     return found
@@ -163,10 +171,8 @@ def test_a_tap_that_went_as_a_plain_form_leaves_the_next_card_in_view(
     watch = devices["watch"]
     watch.page.goto(station.url + "/")
     intentions = play(station, "e1_bolt_undone")
-    card = watch.page.locator("#tasks section.card.waits")
-    card.wait_for()
-    top = card.bounding_box()
-    key = watch.page.locator("#tasks .task-now").get_attribute("data-key")
+    watch.page.locator("#tasks section.card.waits").wait_for()
+    top, key = watch.page.evaluate(CARD_TOP)  # read at once: the card area may be swapped
     with watch.page.expect_navigation():  # form.submit() fires no submit event: no htmx
         watch.page.evaluate(
             "() => document.querySelector('#tasks .card-actions button.done-button')"
@@ -177,8 +183,8 @@ def test_a_tap_that_went_as_a_plain_form_leaves_the_next_card_in_view(
     watch.page.wait_for_function(
         "k => document.querySelector('#tasks .task-now')?.dataset.key !== k", arg=key
     )
-    after = watch.page.locator("#tasks section.card").first.bounding_box()
-    assert top and after and abs(after["y"] - top["y"]) <= 1, (top, after)  # not pushed down
+    after, _ = watch.page.evaluate(CARD_TOP)
+    assert abs(after - top) <= 1, (top, after)  # not pushed down
     flash.wait_for(state="hidden", timeout=10_000)
     finish_on(watch, station, intentions)
 
@@ -222,14 +228,11 @@ def test_a_card_the_station_reminded_of_vibrates_a_reminder(
     overdue = watch.page.locator("#tasks section.card[data-overdue='true']")
     overdue.wait_for()
     assert overdue.locator("[data-testid=overdue]").is_visible()
-    button = overdue.locator(".card-actions button").first
-    box = None
-    for _ in range(20):  # a card being swapped in (the station moved meanwhile) has no box yet
-        button.wait_for()
-        box = button.bounding_box()
-        if box is not None:
-            break
-    assert box and box["y"] + box["height"] <= 320, box  # still on the watch's screen
+    bottom = watch.page.evaluate(  # read at once: the card area may be swapped
+        '() => document.querySelector(\'#tasks section.card[data-overdue="true"]'
+        " .card-actions button').getBoundingClientRect().bottom"
+    )
+    assert bottom <= 320, bottom  # still on the watch's screen
     watch.page.wait_for_function(
         "p => window.__vibrations.some((v) => JSON.stringify(v) === JSON.stringify(p))",
         arg=OVERDUE,
