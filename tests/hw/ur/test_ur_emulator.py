@@ -315,7 +315,8 @@ def test_stall_keeps_the_move_in_progress(running: tuple[Robot, Any, Any]) -> No
     assert receive.getActualQ()[0] < target[0] - 0.1
     robot.op(op="stall", on=False)
     assert until(lambda: control_interface.getAsyncOperationProgress() < 0)
-    assert receive.getActualQ() == pytest.approx(target)
+    # Two RTDE streams: the receive interface's may be a few packets behind the control's.
+    assert until(lambda: receive.getActualQ() == pytest.approx(target))
 
 
 def test_power_off_stops_the_script(running: tuple[Robot, Any, Any]) -> None:
