@@ -4,10 +4,13 @@ Every round of a station, headless (`app.station.player.play`) or live (`app.sta
 one `StationCycle.step`:
 
     1. armed faults whose time or condition has come are injected (simulated devices)
-    2. the devices act on the last commands up to now, and report
-    3. the runner ticks on the report and people's actions, in their order
-    4. maintenance steps the runner accepted are done in the world too
-    5. the runner's command values go to the devices
+    2. a stand-in for the people, if the play has one (`app.station.stand_in`), taps the
+       watches' cards that waited their delay
+    3. the devices act on the last commands up to now, and report
+    4. the runner ticks on the report and people's actions (a scenario's, the stand-in's,
+       then the round's), in their order; the stand-in hears the tick's events
+    5. maintenance steps the runner accepted are done in the world too
+    6. the runner's command values go to the devices
 
 so that what the experiments E1-E9 test is the path the web station runs.
 """
@@ -17,6 +20,7 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
 
+from app.station.stand_in import StandIn
 from hw.devices import Devices, ModelSimulation
 from hw.faults import Fault
 from planner.model.expressions import Expr, Value
@@ -31,6 +35,7 @@ from planner.runner import (
     Runner,
     RunnerState,
 )
+from planner.runner.vocabulary import PersonAct
 
 
 @dataclass(frozen=True)
@@ -86,12 +91,20 @@ class StationCycle:
     faults: list[ScheduledFault] = field(default_factory=list)
     # a scenario's people: what they do at a time or on a condition (`Scenario.actions`)
     people: list[ScheduledAction] = field(default_factory=list)
+    stand_in: StandIn | None = None  # answers for the people in a play (None: they do)
 
     def __post_init__(self) -> None:
         self.publish()
 
     def step(self, now: float, actions: Iterable[Action] = ()) -> CycleResult:
         events = self.fire_faults(now)
+        stand_in = self.stand_in
+        if stand_in is not None:
+            for effect, card in stand_in.cards_to_tap(now, self.state.values):
+                if self.devices.perform(effect):  # recorded as a person's tap would be
+                    detail = {"user": stand_in.user, "card": str(card), "transition": effect}
+                    events.append(Event(now, EventKind.OPERATOR, PersonAct.CARD_DONE, detail))
+            actions = (*stand_in.due(now), *actions)
         actions = (*self.people_due(now), *actions)
         self.devices.advance(now)
         report = self.devices.read()
@@ -110,6 +123,9 @@ class StationCycle:
             if reply.accepted and isinstance(reply.action, MaintenanceDone):
                 self.devices.maintenance_done(reply.action.transition)
         self.publish()
+        if stand_in is not None:
+            for event in result.events:
+                stand_in.answer(event, now)
         return CycleResult((*events, *result.events), result.replies)
 
     def fire_faults(self, now: float) -> list[Event]:

@@ -183,10 +183,13 @@ class LiveStation:
         self._require_simulated("faults are injected")
         return self.submit(InjectFault(user, fault, text))
 
-    def play_experiment(self, scenario: Scenario, title: str, user: str) -> Future[None]:
-        """Put the station back to a scenario's start and arm its faults (not on real devices)."""
+    def play_experiment(
+        self, scenario: Scenario, title: str, user: str, hands_free: bool = False
+    ) -> Future[None]:
+        """Put the station back to a scenario's start and arm its faults (not on real
+        devices); `hands_free`: the station plays the scenario's operator too."""
         self._require_simulated("experiments are played")
-        return self.submit(PlayExperiment(user, scenario, title))
+        return self.submit(PlayExperiment(user, scenario, title, hands_free))
 
     def put_devices_back(self, user: str) -> Future[list[str]]:
         """The emulated devices out of the faults an experiment left (not on real devices,

@@ -15,21 +15,17 @@ from dataclasses import dataclass
 from app.station.cycle import StationCycle
 from app.station.runs import RunTracker
 from app.station.scenario import Scenario
+from app.station.stand_in import StandIn
 from hw.devices import Devices
 from hw.simulated import SimulatedWorld
-from planner.model.flat import TransitionKind
 from planner.model.station import Station
 from planner.planning.operation_planner import OperationPlanner
 from planner.planning.transition_planner import TransitionPlanner
 from planner.runner import (
-    Action,
-    Approve,
     Event,
     EventKind,
     IntentionState,
-    MaintenanceDone,
     QueryObserver,
-    Reject,
     Runner,
     RunnerState,
 )
@@ -75,15 +71,11 @@ def play(
     cycle = _cycle(station, scenario, planners, rounds, stopwatch, observer, devices)
     cycle.runner.learned = dict(learned or {})
     runs = RunTracker(Wording(station))
-    people = _People(scenario)
     while (now := rounds.now()) <= scenario.until:
-        actions = people.due(now)
-        result = cycle.step(now, actions)
+        result = cycle.step(now)
         if watch is not None:
             watch(cycle.state)
-        for event in runs.around(now, cycle.state, result.events, actions):
-            people.answer(event, now)
-            yield event
+        yield from runs.around(now, cycle.state, result.events, ())
         if not runs.open and _all_finished(cycle.state, scenario):
             yield Event(now, EventKind.DONE, "all intentions finished")
             return
@@ -123,34 +115,10 @@ def _cycle(
         budget = scenario.planning_budget
         runner.planning = Delayed(runner.planning, scenario.planning_delay, budget, rounds.now)
     start = runner.initial(0.0, scenario.start)
-    return StationCycle(runner, devices, start, list(scenario.faults), list(scenario.actions))
-
-
-class _People:
-    """The simulated operator's answers to approvals and maintenance steps, each when it is
-    due (the scenario's actions at a time or on a condition are the cycle's, `people`)."""
-
-    def __init__(self, scenario: Scenario) -> None:
-        self.scenario = scenario
-        self.answers: list[tuple[float, Action]] = []
-        self.rejects_left = scenario.rejects
-
-    def due(self, now: float) -> tuple[Action, ...]:
-        """The answers due now, in their order."""
-        actions = tuple(a for t, a in self.answers if t <= now)
-        self.answers = [(t, a) for t, a in self.answers if t > now]
-        return actions
-
-    def answer(self, event: Event, now: float) -> None:
-        asked = event.kind is EventKind.APPROVAL or (
-            event.kind is EventKind.INSTRUCTION and event.detail.get("recovery") is True
-        )
-        if asked and self.rejects_left > 0:  # "I cannot do this", after the usual delay
-            self.rejects_left -= 1
-            step = int(event.detail["step"])
-            self.answers.append((now + self.scenario.operator_delay, Reject(step=step)))
-            return
-        self.answers.extend(_operator_answers(event, self.scenario, now))
+    # the world (or the emulated watches) taps the cards; the stand-in answers the rest
+    stand_in = StandIn(scenario, station)
+    faults, people = list(scenario.faults), list(scenario.actions)
+    return StationCycle(runner, devices, start, faults, people, stand_in)
 
 
 class _Rounds:
@@ -182,20 +150,6 @@ class _Rounds:
             return
         self.due = max(self.due + self.step, self.clock())
         self.sleep(max(0.0, self.due - self.clock()))
-
-
-def _operator_answers(event: Event, scenario: Scenario, now: float) -> list[tuple[float, Action]]:
-    """What the simulated operator does about an event, and when."""
-    delay = scenario.operator_delay
-    if event.kind is EventKind.APPROVAL and scenario.approve:
-        out: list[tuple[float, Action]] = [(now + delay, Approve(step=int(event.detail["step"])))]
-        maintenance = event.detail.get("type") == TransitionKind.MAINTENANCE.value
-        if maintenance and scenario.maintenance:
-            out.append((now + 2 * delay, MaintenanceDone(transition=event.subject)))
-        return out
-    if event.kind is EventKind.INSTRUCTION and scenario.maintenance:
-        return [(now + delay, MaintenanceDone(transition=event.subject))]
-    return []
 
 
 def _all_finished(state: RunnerState, scenario: Scenario) -> bool:

@@ -131,14 +131,16 @@ class InjectFault:
 @dataclass(frozen=True)
 class PlayExperiment:
     """Put the station back to a scenario's start, arm its faults and start its intentions
-    (the simulation panel's E1-E9, `app.station.experiments`)."""
+    (the simulation panel's experiments, `app.station.experiments`); `hands_free`: the
+    station plays the scenario's operator too."""
 
     user: str
     scenario: Scenario
     title: str
+    hands_free: bool = False
 
     def apply(self, running: Running, round_: Round) -> Answer:
-        experiments.play(running, round_, self.scenario, self.title, self.user)
+        experiments.play(running, round_, self.scenario, self.title, self.user, self.hands_free)
         return settled(None)
 
 

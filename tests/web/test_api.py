@@ -366,7 +366,8 @@ def test_a_line_system_drives_a_forbidden_state_recovery_through_the_task_cards(
     command cards, approves recovery steps, reports maintenance steps done."""
     operator, engineer = auth["operator"], auth["engineer"]
     listed = client.get("/api/experiments", headers=engineer).json()
-    assert len(listed) == 9 and listed[1]["id"] == "e2_oil_filter_early"
+    assert [x["group"] for x in listed[:10]] == [""] * 9 + ["faults"]  # E1-E9 first
+    assert listed[1]["id"] == "e2_oil_filter_early"
     assert listed[1]["intentions"] == ["tighten_bolts"]
     assert client.get("/api/experiments", headers=operator).status_code == 403
     response = client.post("/api/experiments/e2_oil_filter/play", headers=engineer)

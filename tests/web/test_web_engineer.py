@@ -3,6 +3,7 @@ simulation panel; permissions, CSRF, and a 4xx with a message for every bad inpu
 
 from __future__ import annotations
 
+import json
 import re
 from typing import Any
 
@@ -11,7 +12,10 @@ from sqlalchemy import select
 
 from app.store import versions
 from app.store.tables import AuditRecord
+from tests.support.paths import REPOSITORY
 from tests.support.stations import MODEL, RunningStation
+
+FAULTS = sorted((REPOSITORY / "models" / "scenarios" / "faults").glob("*.yaml"))
 
 HX = {"hx-request": "true"}
 
@@ -272,9 +276,14 @@ def test_simulation_panel_plays_an_experiment(station: RunningStation):
     page = client.get("/simulation")
     assert page.status_code == 200
     experiments = sorted(station.built.server.experiments)
-    assert len(experiments) == 9
+    assert len([k for k in experiments if re.fullmatch(r"e\d_\w+", k)]) == 9
+    assert len(experiments) == 9 + len(FAULTS) - 2  # no fault scenario that plans slowly
     for key in experiments:
         assert f'data-experiment="{key}"' in page.text
+    faults = page.text[page.text.index('id="fault-scenarios-title"') :]
+    assert 'data-experiment="both_connectors_broken"' in faults
+    assert 'data-experiment="e1_bolt_undone"' not in faults
+    assert "stops quietly and waits for the engineer" in faults  # both locks broken
     assert "robot 2 stops answering" in page.text  # the fault in words
     assert "on the simulated world" in page.text and "emulated devices" not in page.text
     assert ">SIM</span>" in page.text and ">EMU</span>" not in page.text
@@ -440,6 +449,30 @@ def test_one_activation_at_a_time_however_many_engineers_press_it(
     assert len([r for r in audit(station, "model", "engineer") if r.subject == "activated"]) == 1
 
 
+def test_a_hands_free_play_is_answered_by_the_station_in_its_own_name(station: RunningStation):
+    """E2 hands-free: the station approves the recovery and taps the cards as the scenario's
+    operator, recorded as "simulated operator", never as a person; the play is audited as
+    hands-free."""
+    client, token = signed_in(station)
+    played = post(
+        client, token, "/simulation/experiment", experiment="e2_oil_filter_early", hands_free="on"
+    )
+    assert played.status_code == 200 and "the station plays the operator too" in played.text
+    state = lambda: station.live.view.state.intentions.get("tighten_bolts")  # noqa: E731
+    station.wait(lambda: state() == "e", 30)
+    station.wait(lambda: state() == "f", 120)
+    experiment = audit(station, "experiment", "engineer")[-1]
+    assert json.loads(experiment.detail)["hands_free"] is True
+    with station.built.server.store.sessions() as session:
+        query = select(AuditRecord).where(
+            AuditRecord.kind == "operator", AuditRecord.id > experiment.id
+        )
+        acted = list(session.scalars(query))
+    assert {r.user for r in acted if r.subject != "start intention"} == {"simulated operator"}
+    # E2's recovery is a maintenance step: the filters taken off, then the cards tapped
+    assert {"maintenance done", "card done"} <= {r.subject for r in acted}, acted
+
+
 def test_the_experiments_come_back_with_a_model_they_fit(station: RunningStation) -> None:
     """A model that fits no experiment leaves the simulation panel empty; activating the
     demo model again brings E1-E9 back."""
@@ -448,12 +481,13 @@ def test_the_experiments_come_back_with_a_model_they_fit(station: RunningStation
     mini = (REPOSITORY / "tests" / "support" / "models" / "mini_station.yaml").read_text()
     client, token = signed_in(station)
     server = station.built.server
-    assert len(server.experiments) == 9
+    playable = len(server.experiments)
+    assert playable > 9
     assert post(client, token, "/model/save", text=mini, note="mini").status_code == 200
     assert post(client, token, "/model/activate", version=2).status_code == 200
     assert server.experiments == {}
     assert post(client, token, "/model/activate", version=1).status_code == 200
-    assert len(server.experiments) == 9
+    assert len(server.experiments) == playable
     assert "e6_r2_disconnects_above_engine" in server.experiments
 
 

@@ -1,13 +1,15 @@
-"""The papers' experiments E1-E9 through the API, on a simulated station: which it can play,
-and playing one (permission `simulate`; 404 on a station with real devices)."""
+"""The papers' experiments E1-E9 and the fault scenarios through the API, on a simulated
+station: which it can play, and playing one, hands-free if asked (permission `simulate`; 404
+on a station with real devices)."""
 
 from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, HTTPException, Path
+from fastapi import APIRouter, HTTPException, Path, Query
 from pydantic import BaseModel, Field
 
+from app.station.experiments import group_of
 from app.web.actions import answer, known
 from app.web.api.common import ACT, BEARER, PREFIX, errors
 from app.web.deps import ServerDep, Simulator
@@ -18,17 +20,20 @@ router = APIRouter(prefix=PREFIX, tags=["simulation"], dependencies=BEARER)
 
 
 class ExperimentOut(BaseModel):
-    """One of the papers' experiments E1-E9, playable on a simulated station."""
+    """An experiment (E1-E9, a fault scenario, a device play), playable on a simulated
+    station."""
 
     id: str
     title: str
     description: str
     intentions: list[str] = Field(description="the intentions it starts")
+    group: str = Field(description='"" for E1-E9, "faults" or "devices"')
 
 
 class ExperimentStarted(BaseModel):
     id: str
     title: str
+    hands_free: bool
 
 
 def _simulated(srv: Server) -> Server:
@@ -50,8 +55,9 @@ def list_experiments(_caller: Simulator, srv: ServerDep) -> list[ExperimentOut]:
             title=title,
             description=scenario.description,
             intentions=list(scenario.started),
+            group=group_of(scenario),
         )
-        for key, (title, scenario) in sorted(_simulated(srv).experiments.items())
+        for key, (title, scenario) in _simulated(srv).experiments.items()
     ]
 
 
@@ -66,11 +72,15 @@ async def play_experiment(
     experiment: Annotated[
         str, Path(min_length=1, max_length=EXPERIMENT_CHARS, description="its id")
     ],
+    hands_free: Annotated[
+        bool, Query(description="the station plays the scenario's operator too")
+    ] = False,
 ) -> ExperimentStarted:
     """The experiment's faults are armed and its intentions started; its operator steps
-    appear as task cards.  Needs `simulate`."""
+    appear as task cards (hands-free: the station answers them as the scenario's operator
+    would, in the name of "simulated operator").  Needs `simulate`."""
     _simulated(srv)
     key = known(experiment, sorted(srv.experiments), "experiment")
     title, scenario = srv.experiments[key]
-    await answer(srv.live.play_experiment(scenario, title, caller.name))
-    return ExperimentStarted(id=key, title=title)
+    await answer(srv.live.play_experiment(scenario, title, caller.name, hands_free))
+    return ExperimentStarted(id=key, title=title, hands_free=hands_free)

@@ -4,6 +4,7 @@ does while one plays.  A station on real devices has no panel (404)."""
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Form, HTTPException, Request
@@ -12,6 +13,7 @@ from fastapi.responses import Response
 from app.pages import station_rows
 from app.pages.cards import task_cards
 from app.station.cycle import ScheduledFault
+from app.station.experiments import group_of
 from app.station.live import LiveStation
 from app.station.scenario import Scenario
 from app.station.view import StationView
@@ -62,12 +64,22 @@ def play_question(title: str, view: StationView, emulated: bool) -> str:
     return ask
 
 
+def ending_words(expect: Mapping[str, Any]) -> str:
+    """How a fault scenario says a good station ends, in words ("" if it does not say)."""
+    if expect.get("ends") == "done":
+        return "finishes"
+    who = sorted({str(w.get("who")) for w in expect.get("waiting_for") or ()})
+    if expect.get("ends") == "stopped" and who:
+        return f"stops quietly and waits for the {' and the '.join(who)}"
+    return ""
+
+
 def experiments_context(
     experiments: Experiments, view: StationView, emulated: bool
 ) -> dict[str, Any]:
     words = view.model.words
     rows = []
-    for key, (title, scenario) in sorted(experiments.items()):
+    for key, (title, scenario) in experiments.items():
         expect = scenario.expect
         rows.append(
             {
@@ -80,9 +92,13 @@ def experiments_context(
                 "recovery_labels": [str(r) for r in expect.get("recovery") or ()],
                 "operator": [words.text(str(o)) for o in expect.get("operator") or ()],
                 "confirm": play_question(words.text(title), view, emulated),
+                "group": group_of(scenario),
+                "ends": ending_words(expect),
             }
         )
-    return {"experiments": rows, "running_now": running_words(view)}
+    faults = [r for r in rows if r["group"] == "faults"]
+    rows = [r for r in rows if r["group"] != "faults"]
+    return {"experiments": rows, "fault_scenarios": faults, "running_now": running_words(view)}
 
 
 def simulation_status(experiments: Experiments, view: StationView) -> dict[str, Any]:
@@ -162,13 +178,17 @@ async def play_experiment(
     caller: Simulator,
     srv: ServerDep,
     experiment: Annotated[str, Form(max_length=NAME_CHARS)],
+    hands_free: Annotated[bool, Form()] = False,
 ) -> Response:
+    """Play an experiment; `hands_free` (a checkbox): the station plays its operator too."""
     simulated(srv.live)
     key = known(experiment.strip(), sorted(srv.experiments), "experiment")
     title, scenario = srv.experiments[key]
-    await answer(srv.live.play_experiment(scenario, title, caller.name))
+    await answer(srv.live.play_experiment(scenario, title, caller.name, hands_free))
     view = srv.live.view
     started = f"{view.model.words.text(title)}: started. Watch the station and the tasks pages."
+    if hands_free:
+        started = f"{view.model.words.text(title)}: started; the station plays the operator too."
     if not htmx(request):
         return outcomes.done(request, "/simulation", started)
     return render(

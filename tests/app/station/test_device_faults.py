@@ -132,7 +132,7 @@ def test_the_simulation_panel_offers_the_device_plays_on_emulated_devices_only()
     simulated = experiments(station)
     emulated = experiments(station, emulated=True)
     device_plays = {p.stem for p in SCENARIOS}
-    assert len(simulated) == 9 and not device_plays & simulated.keys()
+    assert len(simulated) == 30 and not device_plays & simulated.keys()  # E1-E9 and faults
     assert device_plays <= emulated.keys() and simulated.keys() <= emulated.keys()
     title, scenario = emulated["r1_protective_stop_on_the_way"]
     assert title == "devices: r1 protective stop on the way"
