@@ -102,7 +102,7 @@ def test_the_panel_offers_the_fault_scenarios_the_station_can_play(station: Runn
 def play_hands_free_from_the_panel(page: Any, station: RunningStation, name: str) -> None:
     page.goto(station.url + "/simulation")
     card = page.locator(f"#experiment-{name}")
-    card.get_by_label("Hands-free").check()
+    page.get_by_label("Hands-free").check()
     page.once("dialog", lambda dialog: dialog.accept())
     card.get_by_role("button", name="Play").click()
     page.locator("#flash", has_text="the station plays the operator too").wait_for()
